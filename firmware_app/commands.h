@@ -1,0 +1,10 @@
+// The `rdslam` subcommands. Each lives in its own firmware_app/cmd_*.cpp and is listed in
+// the table in main.cpp; a subcommand appears there (and in --help) only once it works.
+// Each returns the process exit code: 0 success, 1 runtime failure, 2 usage/config error.
+#pragma once
+
+namespace rdslam {
+
+int cmd_config(int argc, char** argv);
+
+}  // namespace rdslam

@@ -1,0 +1,70 @@
+// rdslam's configuration: one YAML file (systemd/rdslam.yaml is the documented default)
+// plus `--set key=value` overrides with the YAML's dotted keys.
+//
+// Every section is a plain parameter struct with the paper's defaults and a visit() that
+// names its keys and ranges (core/params.h). The loader rejects unknown keys, wrong types
+// and out-of-range values with a ConfigError naming the key, the value and what is allowed.
+//
+// Ownership: AppConfig is a value; load_config() returns a fresh one. Threads: start-up only.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/params.h"
+
+namespace rdslam {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct LcmParams {
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string pose_channel = "RDSLAM_POSE";
+  std::string status_channel = "RDSLAM_STATUS";
+  bool publish_bot_core_pose = false;
+  std::string bot_core_pose_channel = "POSE_BODY";
+  void visit(ParamVisitor& v);
+};
+
+struct GeneralParams {
+  std::string source = "synth:static_xyz";  // frame source URI (drivers/source_factory.h)
+  std::string log_level = "info";
+  void visit(ParamVisitor& v);
+};
+
+struct AppConfig {
+  GeneralParams general;  // top-level keys: source, log_level
+  CameraModel camera;
+  LcmParams lcm;
+
+  // Sections in file order: {yaml key, visitor}. An empty key means top-level fields.
+  // A module adds its parameter struct as a member above and one line in sections().
+  struct Section {
+    const char* key;
+    std::function<void(ParamVisitor&)> visit;
+  };
+  std::vector<Section> sections();
+  // Cross-field checks after loading; throws ConfigError.
+  void validate() const;
+};
+
+// Load `path` (empty: defaults only) and apply overrides "dotted.key=value" in order.
+// Throws ConfigError.
+AppConfig load_config(const std::string& path, const std::vector<std::string>& overrides);
+
+// Effective configuration as YAML text (what ran), and the dotted keys whose values differ
+// from the defaults as "key=value" strings (logged at start-up).
+std::string dump_config(AppConfig& config);
+std::vector<std::string> non_default_params(AppConfig& config);
+
+// True when `overrides` set any camera.* key (the user's camera wins over the dataset's).
+bool overrides_camera(const std::vector<std::string>& overrides);
+
+}  // namespace rdslam
