@@ -1,0 +1,57 @@
+// The contract between the runtime (firmware_app/pipeline: threads, rings, LCM) and the
+// SLAM algorithms (core/). core/ never creates threads: the pipeline owns one tracker thread
+// that calls TrackerStage::track() for each frame it takes from the capture ring, and one
+// mapper thread that calls MapperStage::step() in a loop. Tracker and mapper exchange data
+// only through SPSC rings and immutable snapshots that they create together
+// (make_slam_stages() in the SLAM module); the pipeline never sees their internals.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+
+namespace rdslam {
+
+struct Frame;  // drivers/frame_source.h
+
+// Values match the STATE_* constants of lcmtypes/rdslam_pose_t.lcm.
+enum class TrackingState : int8_t {
+  kInitializing = 0,  // no map yet; pose is meaningless
+  kTracking = 1,      // pose supported by the estimator
+  kLost = 2,          // tracking failed; pose is the last good one
+  kRelocalized = 3,   // first pose after relocalization
+};
+
+const char* to_string(TrackingState s);
+
+struct TrackResult {
+  TrackingState state = TrackingState::kInitializing;
+  Eigen::Vector3d p_world_cam{0, 0, 0};        // camera centre in the map frame
+  Eigen::Quaterniond q_world_cam{1, 0, 0, 0};  // rotation camera -> world
+  int inliers = 0;
+  double quality = 0.0;                 // inlier ratio in [0, 1]
+  std::array<double, 36> covariance{};  // row-major 6x6 [p, rotvec]; all -1 if unknown
+  int map_points = 0;                   // valid map points (for status)
+  int keyframes = 0;                    // valid keyframes (for status)
+  int64_t invalidated_points = 0;       // cumulative
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+// Called by the tracker thread only. Must not allocate on the heap after warm-up.
+class TrackerStage {
+ public:
+  virtual ~TrackerStage() = default;
+  virtual TrackResult track(const Frame& frame) = 0;
+};
+
+// Called by the mapper thread only. step() does one unit of work (e.g. one keyframe
+// insertion or one local bundle adjustment) or waits at most `timeout_ms` for work; it
+// returns false when there was nothing to do.
+class MapperStage {
+ public:
+  virtual ~MapperStage() = default;
+  virtual bool step(int timeout_ms) = 0;
+};
+
+}  // namespace rdslam
