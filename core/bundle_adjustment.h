@@ -1,0 +1,42 @@
+// Bundle adjustment with Ceres (Sec. 3: "a work thread for frequent bundle adjustment of the
+// estimated 3D points and camera poses", as in PTAM). Reprojection residuals in pixels
+// divided by the feature's noise scale, with a Huber loss; a local window of keyframes is
+// optimised while the keyframes outside it that see the same points are held fixed.
+//
+// Ownership: operates on the caller's Map. Threads: mapper thread (and the tracker once at
+// initialization, for the two-view bundle adjustment).
+#pragma once
+
+#include <vector>
+
+#include "core/geometry.h"
+#include "core/map.h"
+#include "core/params.h"
+
+namespace rdslam {
+
+struct BundleAdjustmentParams {
+  int window = 10;          // local BA: new keyframe + this many covisible keyframes
+  int max_fixed = 20;       // fixed keyframes (outside the window) kept as anchors
+  int iterations = 10;      // Levenberg-Marquardt iterations per pass
+  double huber_px = 2.447;  // sqrt(5.991): Huber threshold on the normalised residual
+  bool second_pass = true;  // re-run without the outliers found by the first pass
+
+  void visit(ParamVisitor& v);
+};
+
+struct BundleAdjustmentStats {
+  int keyframes = 0, fixed = 0, points = 0, residuals = 0;
+  int outliers_removed = 0;
+  double initial_cost = 0, final_cost = 0;
+};
+
+// Optimises the keyframes in `window_kfs` (those with Keyframe::fixed stay fixed) and all
+// points they observe; other keyframes observing those points are fixed. Observations with a
+// normalised squared error above 5.991 after optimisation are removed from the map, and
+// points left with fewer than 2 observations are erased.
+BundleAdjustmentStats bundle_adjust(Map& map, const Intrinsics& K,
+                                    const std::vector<int>& window_kfs,
+                                    const BundleAdjustmentParams& params);
+
+}  // namespace rdslam

@@ -1,0 +1,374 @@
+#include "core/features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace rdslam {
+
+namespace {
+
+constexpr int kHalfPatch = 15;    // orientation patch radius (ORB)
+constexpr int kEdge = 19;         // border so rotated BRIEF tests stay inside the image
+constexpr int kPatternClip = 13;  // |x|,|y| of test points: 13*sqrt(2) < kEdge
+
+// Deterministic BRIEF test pattern (Calonder et al.'s G II: isotropic Gaussian, sigma = S/5
+// for a 31-pixel patch), from a fixed 64-bit LCG and Box-Muller so every build and platform
+// uses the same bits.
+std::vector<int> make_pattern() {
+  uint64_t state = 0x9E3779B97F4A7C15ULL;
+  auto uniform = [&state]() {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return ((state >> 11) + 0.5) / 9007199254740992.0;  // (0, 1)
+  };
+  auto gauss = [&]() {
+    const double u1 = uniform(), u2 = uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+  };
+  std::vector<int> p;
+  p.reserve(256 * 4);
+  while (p.size() < 256 * 4) {
+    int v[4];
+    for (int& c : v) {
+      c = static_cast<int>(std::lround(gauss() * 31.0 / 5.0));
+      c = std::max(-kPatternClip, std::min(kPatternClip, c));
+    }
+    if (v[0] == v[2] && v[1] == v[3]) continue;
+    p.insert(p.end(), v, v + 4);
+  }
+  return p;
+}
+
+}  // namespace
+
+void FeatureParams::visit(ParamVisitor& v) {
+  v.field("mode", mode, {"orb", "sift"},
+          "orb: fast default (FAST + steered BRIEF, grid bucketing); sift: the paper");
+  v.field("max_features", max_features, 100, 10000, "features per frame");
+  v.field("levels", levels, 1, 8, "ORB pyramid levels");
+  v.field("scale_factor", scale_factor, 1.05, 2.0, "ORB pyramid scale between levels");
+  v.field("fast_threshold", fast_threshold, 1, 100, "FAST corner threshold (grey levels)");
+  v.field("grid_cell_px", grid_cell_px, 8, 256, "bucketing cell size in pixels");
+  v.field("match_ratio", match_ratio, 0.1, 1.0, "2-NN ratio for ORB projection matching");
+  v.field("sift_ratio", sift_ratio, 0.1, 1.0, "paper Sec. 3: SIFT matching confidence c < 0.6");
+  v.field("orb_max_distance", orb_max_distance, 1, 256, "max Hamming distance of a match");
+  v.field("sift_max_distance", sift_max_distance, 1.0, 1000.0, "max L2 distance of a SIFT match");
+}
+
+std::string FeatureParams::validate() const {
+  if (max_features < 100) return "features.max_features: must be >= 100";
+  return {};
+}
+
+double descriptor_distance(const uint8_t* a, const uint8_t* b, bool binary) {
+  if (binary) return hamming256(a, b);
+  const float* x = reinterpret_cast<const float*>(a);
+  const float* y = reinterpret_cast<const float*>(b);
+  float s = 0.f;
+  for (int i = 0; i < 128; ++i) {
+    const float d = x[i] - y[i];
+    s += d * d;
+  }
+  return std::sqrt(static_cast<double>(s));
+}
+
+void Features::build_grid() {
+  grid_cols = std::max(1, static_cast<int>(std::ceil(width / cell_px)));
+  grid_rows = std::max(1, static_cast<int>(std::ceil(height / cell_px)));
+  const int ncell = grid_cols * grid_rows;
+  cell_start.assign(ncell + 1, 0);
+  if (static_cast<int>(cell_items.size()) < count) cell_items.resize(kps.size());
+  auto cell_of = [&](int i) {
+    const int cx = std::min(grid_cols - 1, std::max(0, static_cast<int>(un[i].x / cell_px)));
+    const int cy = std::min(grid_rows - 1, std::max(0, static_cast<int>(un[i].y / cell_px)));
+    return cy * grid_cols + cx;
+  };
+  for (int i = 0; i < count; ++i) ++cell_start[cell_of(i) + 1];
+  for (int c = 0; c < ncell; ++c) cell_start[c + 1] += cell_start[c];
+  // Fill using a moving cursor; cell_start is restored afterwards.
+  for (int i = 0; i < count; ++i) cell_items[cell_start[cell_of(i)]++] = i;
+  for (int c = ncell; c > 0; --c) cell_start[c] = cell_start[c - 1];
+  cell_start[0] = 0;
+}
+
+int Features::radius_search(float x, float y, float radius, int min_level, int max_level, int* out,
+                            int cap) const {
+  if (grid_cols == 0) return 0;
+  const int x0 = std::max(0, static_cast<int>((x - radius) / cell_px));
+  const int x1 = std::min(grid_cols - 1, static_cast<int>((x + radius) / cell_px));
+  const int y0 = std::max(0, static_cast<int>((y - radius) / cell_px));
+  const int y1 = std::min(grid_rows - 1, static_cast<int>((y + radius) / cell_px));
+  if (x1 < 0 || y1 < 0 || x0 >= grid_cols || y0 >= grid_rows) return 0;
+  const float r2 = radius * radius;
+  int n = 0;
+  for (int cy = y0; cy <= y1; ++cy) {
+    for (int cx = x0; cx <= x1; ++cx) {
+      const int c = cy * grid_cols + cx;
+      for (int k = cell_start[c]; k < cell_start[c + 1]; ++k) {
+        const int i = cell_items[k];
+        if (level[i] < min_level || level[i] > max_level) continue;
+        const float dx = un[i].x - x, dy = un[i].y - y;
+        if (dx * dx + dy * dy > r2) continue;
+        if (n < cap) out[n++] = i;
+      }
+    }
+  }
+  return n;
+}
+
+void Features::copy_from(const Features& o) {
+  count = o.count;
+  width = o.width;
+  height = o.height;
+  binary = o.binary;
+  if (kps.size() < o.kps.size()) {
+    kps.resize(o.kps.size());
+    un.resize(o.kps.size());
+    scale.resize(o.kps.size());
+    level.resize(o.kps.size());
+  }
+  std::copy(o.kps.begin(), o.kps.begin() + count, kps.begin());
+  std::copy(o.un.begin(), o.un.begin() + count, un.begin());
+  std::copy(o.scale.begin(), o.scale.begin() + count, scale.begin());
+  std::copy(o.level.begin(), o.level.begin() + count, level.begin());
+  if (desc.rows < o.desc.rows || desc.type() != o.desc.type() || desc.cols != o.desc.cols) {
+    desc.create(o.desc.rows, o.desc.cols, o.desc.type());
+  }
+  if (count > 0) o.desc.rowRange(0, count).copyTo(desc.rowRange(0, count));
+  cell_px = o.cell_px;
+  build_grid();
+}
+
+FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraModel& camera)
+    : params_(params), camera_(camera) {
+  pattern_ = make_pattern();
+  // Circular patch bounds for the intensity centroid (as in ORB).
+  umax_.assign(kHalfPatch + 1, 0);
+  const int vmax = static_cast<int>(std::floor(kHalfPatch * std::sqrt(2.0) / 2 + 1));
+  const int vmin = static_cast<int>(std::ceil(kHalfPatch * std::sqrt(2.0) / 2));
+  for (int v = 0; v <= vmax; ++v) {
+    umax_[v] = static_cast<int>(std::lround(std::sqrt(double(kHalfPatch * kHalfPatch - v * v))));
+  }
+  for (int v = kHalfPatch, v0 = 0; v >= vmin; --v) {
+    while (umax_[v0] == umax_[v0 + 1]) ++v0;
+    umax_[v] = v0;
+    ++v0;
+  }
+  const int L = params_.levels;
+  level_scale_.resize(L);
+  level_quota_.resize(L);
+  pyramid_.resize(L);
+  blurred_.resize(L);
+  double total = 0;
+  for (int l = 0; l < L; ++l) {
+    level_scale_[l] = static_cast<float>(std::pow(params_.scale_factor, l));
+    total += 1.0 / (level_scale_[l] * level_scale_[l]);
+  }
+  int assigned = 0;
+  for (int l = 0; l < L; ++l) {
+    // Quota by level area, so every level contributes in proportion to its pixels.
+    level_quota_[l] =
+        static_cast<int>(params_.max_features / (level_scale_[l] * level_scale_[l]) / total);
+    assigned += level_quota_[l];
+  }
+  level_quota_[0] += params_.max_features - assigned;
+  if (camera_.has_distortion()) {
+    std::vector<cv::Point2f> in, out;
+    in.reserve(static_cast<size_t>(camera_.width) * camera_.height);
+    for (int y = 0; y < camera_.height; ++y) {
+      for (int x = 0; x < camera_.width; ++x) in.emplace_back(float(x), float(y));
+    }
+    camera_.undistort_points(in, out);
+    undistort_map_.create(camera_.height, camera_.width, CV_32FC2);
+    for (int y = 0; y < camera_.height; ++y) {
+      for (int x = 0; x < camera_.width; ++x) {
+        undistort_map_.at<cv::Vec2f>(y, x) =
+            cv::Vec2f(out[y * camera_.width + x].x, out[y * camera_.width + x].y);
+      }
+    }
+  }
+  if (params_.is_sift()) sift_ = cv::SIFT::create(params_.max_features);
+}
+
+void FeatureExtractor::prepare(Features& out, int w, int h) const {
+  const size_t cap = static_cast<size_t>(params_.max_features) + 64;
+  if (out.kps.size() < cap) {
+    out.kps.resize(cap);
+    out.un.resize(cap);
+    out.scale.resize(cap);
+    out.level.resize(cap);
+    out.cell_items.resize(cap);
+  }
+  const int type = params_.is_sift() ? CV_32F : CV_8U;
+  const int cols = params_.is_sift() ? 128 : 32;
+  if (out.desc.rows < static_cast<int>(cap) || out.desc.type() != type || out.desc.cols != cols) {
+    out.desc.create(static_cast<int>(cap), cols, type);
+  }
+  out.binary = !params_.is_sift();
+  out.width = w;
+  out.height = h;
+  out.count = 0;
+  out.cell_px = static_cast<float>(std::max(16, params_.grid_cell_px / 2));
+}
+
+void FeatureExtractor::extract(const cv::Mat& gray, Features& out) {
+  if (gray.empty() || gray.type() != CV_8UC1) {
+    out.count = 0;
+    out.build_grid();
+    return;
+  }
+  prepare(out, gray.cols, gray.rows);
+  if (params_.is_sift()) {
+    extract_sift(gray, out);
+  } else {
+    extract_orb(gray, out);
+  }
+  undistort(out);
+  out.build_grid();
+}
+
+void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
+  const int L = params_.levels;
+  pyramid_[0] = gray;
+  for (int l = 1; l < L; ++l) {
+    const cv::Size sz(static_cast<int>(std::lround(gray.cols / level_scale_[l])),
+                      static_cast<int>(std::lround(gray.rows / level_scale_[l])));
+    cv::resize(pyramid_[l - 1], pyramid_[l], sz, 0, 0, cv::INTER_LINEAR);
+  }
+  const int cell = params_.grid_cell_px;
+  for (int l = 0; l < L; ++l) {
+    const cv::Mat& img = pyramid_[l];
+    if (img.cols <= 2 * kEdge + 1 || img.rows <= 2 * kEdge + 1) continue;
+    cv::GaussianBlur(img, blurred_[l], cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
+    fast_buf_.clear();
+    cv::FAST(img, fast_buf_, params_.fast_threshold, true);
+    // Drop corners too close to the border for the descriptor.
+    size_t k = 0;
+    for (size_t i = 0; i < fast_buf_.size(); ++i) {
+      const auto& p = fast_buf_[i].pt;
+      if (p.x >= kEdge && p.y >= kEdge && p.x < img.cols - kEdge && p.y < img.rows - kEdge) {
+        fast_buf_[k++] = fast_buf_[i];
+      }
+    }
+    fast_buf_.resize(k);
+    std::sort(fast_buf_.begin(), fast_buf_.end(),
+              [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
+    // Grid bucketing: rank each corner within its cell (strongest first) and keep corners in
+    // rank order, so weak cells are served before strong cells get their second corner.
+    const int gc = (img.cols + cell - 1) / cell, gr = (img.rows + cell - 1) / cell;
+    cell_count_.assign(static_cast<size_t>(gc) * gr, 0);
+    if (rank_buf_.size() < fast_buf_.size()) rank_buf_.resize(fast_buf_.size());
+    int max_rank = 0;
+    for (size_t i = 0; i < fast_buf_.size(); ++i) {
+      const int c = static_cast<int>(fast_buf_[i].pt.y) / cell * gc +
+                    static_cast<int>(fast_buf_[i].pt.x) / cell;
+      rank_buf_[i] = cell_count_[c]++;
+      max_rank = std::max(max_rank, rank_buf_[i]);
+    }
+    const int quota = level_quota_[l];
+    // Rank cut-off: all corners of rank < cut, then rank == cut (strongest first) to fill.
+    rank_hist_.assign(static_cast<size_t>(max_rank) + 2, 0);
+    for (size_t i = 0; i < fast_buf_.size(); ++i) ++rank_hist_[rank_buf_[i]];
+    int cut = 0, below = 0;
+    while (cut <= max_rank && below + rank_hist_[cut] <= quota) below += rank_hist_[cut++];
+    int room_at_cut = quota - below;
+    int taken = 0;
+    {
+      for (size_t i = 0; i < fast_buf_.size() && taken < quota; ++i) {
+        if (rank_buf_[i] > cut) continue;
+        if (rank_buf_[i] == cut) {
+          if (room_at_cut <= 0) continue;
+          --room_at_cut;
+        }
+        if (out.count >= static_cast<int>(out.kps.size())) break;
+        const cv::KeyPoint& kp = fast_buf_[i];
+        const int x = static_cast<int>(kp.pt.x), y = static_cast<int>(kp.pt.y);
+        // Intensity centroid orientation (Rosin), circular patch of radius 15.
+        const uchar* center = img.ptr<uchar>(y) + x;
+        const int step = static_cast<int>(img.step1());
+        int m01 = 0, m10 = 0;
+        for (int u = -kHalfPatch; u <= kHalfPatch; ++u) m10 += u * center[u];
+        for (int v = 1; v <= kHalfPatch; ++v) {
+          int vsum = 0;
+          const int d = umax_[v];
+          for (int u = -d; u <= d; ++u) {
+            const int val_plus = center[u + v * step], val_minus = center[u - v * step];
+            vsum += (val_plus - val_minus);
+            m10 += u * (val_plus + val_minus);
+          }
+          m01 += v * vsum;
+        }
+        const float angle = std::atan2(static_cast<float>(m01), static_cast<float>(m10));
+        const float ca = std::cos(angle), sa = std::sin(angle);
+        // Steered BRIEF on the smoothed level image.
+        const cv::Mat& b = blurred_[l];
+        const uchar* bc = b.ptr<uchar>(y) + x;
+        const int bstep = static_cast<int>(b.step1());
+        uint8_t* d = out.desc.ptr<uint8_t>(out.count);
+        for (int byte = 0; byte < 32; ++byte) {
+          uint8_t val = 0;
+          for (int bit = 0; bit < 8; ++bit) {
+            const int* p = &pattern_[(byte * 8 + bit) * 4];
+            const int x0 = static_cast<int>(std::lround(ca * p[0] - sa * p[1]));
+            const int y0 = static_cast<int>(std::lround(sa * p[0] + ca * p[1]));
+            const int x1 = static_cast<int>(std::lround(ca * p[2] - sa * p[3]));
+            const int y1 = static_cast<int>(std::lround(sa * p[2] + ca * p[3]));
+            val |= static_cast<uint8_t>((bc[y0 * bstep + x0] < bc[y1 * bstep + x1]) << bit);
+          }
+          d[byte] = val;
+        }
+        cv::KeyPoint& o = out.kps[out.count];
+        o.pt = cv::Point2f(kp.pt.x * level_scale_[l], kp.pt.y * level_scale_[l]);
+        o.size = 31.f * level_scale_[l];
+        o.angle = angle * 180.f / static_cast<float>(M_PI);
+        o.response = kp.response;
+        o.octave = l;
+        out.level[out.count] = l;
+        out.scale[out.count] = level_scale_[l];
+        ++out.count;
+        ++taken;
+      }
+    }
+  }
+}
+
+void FeatureExtractor::extract_sift(const cv::Mat& gray, Features& out) {
+  sift_kps_.clear();
+  sift_->detectAndCompute(gray, cv::noArray(), sift_kps_, sift_desc_);
+  const int n = std::min(static_cast<int>(sift_kps_.size()), static_cast<int>(out.kps.size()));
+  for (int i = 0; i < n; ++i) {
+    const cv::KeyPoint& kp = sift_kps_[i];
+    int octave = kp.octave & 255;
+    if (octave >= 128) octave -= 256;
+    out.kps[i] = kp;
+    out.level[i] = std::max(0, octave + 1);
+    // Localisation noise grows with the detection scale.
+    out.scale[i] = std::max(1.f, kp.size / 6.f);
+    sift_desc_.row(i).copyTo(out.desc.row(i));
+  }
+  out.count = n;
+}
+
+void FeatureExtractor::undistort(Features& out) const {
+  for (int i = 0; i < out.count; ++i) {
+    const cv::Point2f p = out.kps[i].pt;
+    if (undistort_map_.empty()) {
+      out.un[i] = p;
+      continue;
+    }
+    // Bilinear interpolation of the per-pixel undistortion table.
+    const float fx = std::min(std::max(p.x, 0.f), float(undistort_map_.cols - 1.001f));
+    const float fy = std::min(std::max(p.y, 0.f), float(undistort_map_.rows - 1.001f));
+    const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+    const float ax = fx - x0, ay = fy - y0;
+    const cv::Vec2f a = undistort_map_.at<cv::Vec2f>(y0, x0);
+    const cv::Vec2f b = undistort_map_.at<cv::Vec2f>(y0, x0 + 1);
+    const cv::Vec2f c = undistort_map_.at<cv::Vec2f>(y0 + 1, x0);
+    const cv::Vec2f d = undistort_map_.at<cv::Vec2f>(y0 + 1, x0 + 1);
+    const cv::Vec2f r = (1 - ay) * ((1 - ax) * a + ax * b) + ay * ((1 - ax) * c + ax * d);
+    out.un[i] = cv::Point2f(r[0], r[1]);
+  }
+}
+
+}  // namespace rdslam

@@ -1,0 +1,110 @@
+// Feature extraction in two modes (config `features.mode`):
+//  - "orb" (fast default, for 25 fps on an ARM core): FAST corners on an image pyramid,
+//    bucketed over an image grid so features cover the whole view, intensity-centroid
+//    orientation and 256-bit steered BRIEF descriptors (rBRIEF, Rublee et al. 2011) from our
+//    own fixed test pattern. All buffers are preallocated; extract() does not allocate after
+//    the first frame of a given size (OpenCV's FAST keeps a small internal buffer).
+//  - "sift" (the paper, Sec. 3): SIFT keypoints and 128-float descriptors (OpenCV SIFT), to be
+//    matched with a FLANN KD-tree and the ratio test c < 0.6. Allocates per frame (paper mode).
+//
+// Keypoint coordinates are stored twice: raw pixels (for image patches) and undistorted ideal
+// pixels (for geometry). A fixed spatial grid over the undistorted coordinates supports the
+// radius searches of projection-guided matching.
+//
+// Ownership: FeatureExtractor owns its pyramid buffers; Features is a caller-owned buffer.
+// Threads: one extractor per thread (the tracker owns one).
+#pragma once
+
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/params.h"
+
+namespace rdslam {
+
+struct FeatureParams {
+  std::string mode = "orb";  // orb (fast default) | sift (the paper)
+  int max_features = 1200;   // per frame
+  int levels = 4;            // ORB pyramid levels
+  double scale_factor = 1.2;
+  int fast_threshold = 12;           // FAST threshold; cells rank corners by score
+  int grid_cell_px = 40;             // bucketing cell size (level-0 pixels)
+  double match_ratio = 0.8;          // 2-NN ratio for ORB projection-guided matches
+  double sift_ratio = 0.6;           // the paper's matching confidence c < 0.6 (Sec. 3)
+  int orb_max_distance = 64;         // Hamming distance accepted for a match (of 256 bits)
+  double sift_max_distance = 250.0;  // L2 distance accepted for a SIFT match (unit 512 norm)
+
+  void visit(ParamVisitor& v);
+  std::string validate() const;
+  bool is_sift() const { return mode == "sift"; }
+  int descriptor_bytes() const { return is_sift() ? 128 * 4 : 32; }
+};
+
+// One frame's features. Buffers grow to capacity once and are reused.
+struct Features {
+  int count = 0;
+  int width = 0, height = 0;
+  std::vector<cv::KeyPoint> kps;  // raw pixels; octave = pyramid level
+  std::vector<cv::Point2f> un;    // undistorted ideal pixels
+  std::vector<float> scale;       // pixel-noise scale of the feature (scale_factor^level)
+  std::vector<int> level;
+  cv::Mat desc;  // max rows x (32 CV_8U | 128 CV_32F); the first `count` rows are valid
+  bool binary = true;
+
+  // Grid over undistorted coordinates (CSR layout).
+  float cell_px = 32.f;
+  int grid_cols = 0, grid_rows = 0;
+  std::vector<int> cell_start;  // grid_cols*grid_rows + 1
+  std::vector<int> cell_items;
+
+  void build_grid();
+  // Indices of features within `radius` pixels of (x, y) with level in [min_level, max_level];
+  // writes at most `cap` indices into `out`, returns their number.
+  int radius_search(float x, float y, float radius, int min_level, int max_level, int* out,
+                    int cap) const;
+  const uint8_t* desc_ptr(int i) const { return desc.ptr<uint8_t>(i); }
+  void copy_from(const Features& o);  // reuses capacity
+};
+
+// Descriptor distance: Hamming bits (binary) or L2 (float), as a double.
+double descriptor_distance(const uint8_t* a, const uint8_t* b, bool binary);
+inline int hamming256(const uint8_t* a, const uint8_t* b) {
+  const uint64_t* x = reinterpret_cast<const uint64_t*>(a);
+  const uint64_t* y = reinterpret_cast<const uint64_t*>(b);
+  return __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +
+         __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);
+}
+
+class FeatureExtractor {
+ public:
+  FeatureExtractor(const FeatureParams& params, const CameraModel& camera);
+  // `gray` is CV_8UC1 of the camera's size. Never throws; bad input yields count = 0.
+  void extract(const cv::Mat& gray, Features& out);
+  const FeatureParams& params() const { return params_; }
+
+ private:
+  void extract_orb(const cv::Mat& gray, Features& out);
+  void extract_sift(const cv::Mat& gray, Features& out);
+  void undistort(Features& out) const;
+  void prepare(Features& out, int w, int h) const;
+
+  FeatureParams params_;
+  CameraModel camera_;
+  std::vector<cv::Mat> pyramid_, blurred_;
+  std::vector<float> level_scale_;
+  std::vector<int> level_quota_;
+  std::vector<cv::KeyPoint> fast_buf_;
+  std::vector<int> rank_buf_, cell_count_, rank_hist_;
+  std::vector<int> umax_;
+  std::vector<int> pattern_;  // 256 pairs: x0 y0 x1 y1
+  cv::Mat undistort_map_;     // CV_32FC2 per raw pixel -> ideal pixel (empty: no distortion)
+  cv::Ptr<cv::SIFT> sift_;
+  std::vector<cv::KeyPoint> sift_kps_;
+  cv::Mat sift_desc_;
+};
+
+}  // namespace rdslam

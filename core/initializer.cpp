@@ -1,0 +1,325 @@
+#include "core/initializer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+namespace rdslam {
+
+const char* to_string(InitStatus s) {
+  switch (s) {
+    case InitStatus::kOk:
+      return "ok";
+    case InitStatus::kNoReference:
+      return "no-reference";
+    case InitStatus::kFewMatches:
+      return "few-matches";
+    case InitStatus::kLittleMotion:
+      return "little-motion";
+    case InitStatus::kModelFailed:
+      return "model-failed";
+    case InitStatus::kAmbiguous:
+      return "ambiguous";
+    case InitStatus::kLowParallax:
+      return "low-parallax";
+    case InitStatus::kInconsistent:
+      return "inconsistent";
+    case InitStatus::kFewPoints:
+      return "few-points";
+  }
+  return "?";
+}
+
+void InitializerParams::visit(ParamVisitor& v) {
+  v.field("min_features", min_features, 10, 10000, "frames with fewer features are skipped");
+  v.field("min_matches", min_matches, 10, 10000, "matches to the reference frame needed");
+  v.field("search_radius_frac", search_radius_frac, 0.01, 1.0,
+          "match window radius, fraction of image width");
+  v.field("min_median_flow_px", min_median_flow_px, 0.0, 1.0,
+          "motion gate: median match displacement, fraction of image width");
+  v.field("homography_ratio", homography_ratio, 0.0, 1.0,
+          "R_H = S_H/(S_H+S_E) above this selects the homography");
+  v.field("min_parallax_deg", min_parallax_deg, 0.0, 45.0, "parallax gate (degrees)");
+  v.field("parallax_quantile", parallax_quantile, 0.0, 1.0,
+          "quantile of triangulation angles that must pass the parallax gate");
+  v.field("min_inlier_fraction", min_inlier_fraction, 0.0, 1.0,
+          "matches that must agree with the rigid motion (rejects moving objects)");
+  v.field("min_points", min_points, 10, 10000, "triangulated points needed");
+  v.field("max_reference_age", max_reference_age, 2, 100000,
+          "frames before the reference is renewed");
+}
+
+Initializer::Initializer(const InitializerParams& params, const FeatureParams& features,
+                         const Intrinsics& K, const BundleAdjustmentParams& ba)
+    : params_(params), fparams_(features), K_(K), ba_(ba) {}
+
+void Initializer::reset() {
+  has_ref_ = false;
+  ref_age_ = 0;
+}
+
+int Initializer::match(const Features& cur) {
+  const int nref = ref_.count;
+  match_of_ref_.assign(nref, -1);
+  std::vector<double> best_cur(cur.count, 1e18);
+  std::vector<int> best_cur_ref(cur.count, -1);
+  cand_.resize(4096);
+  const float radius = static_cast<float>(params_.search_radius_frac * cur.width);
+  const bool bin = cur.binary;
+  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
+  const double ratio = bin ? 0.9 : fparams_.sift_ratio;
+  for (int i = 0; i < nref; ++i) {
+    const int n =
+        cur.radius_search(ref_.un[i].x, ref_.un[i].y, radius, ref_.level[i] - 1, ref_.level[i] + 1,
+                          cand_.data(), static_cast<int>(cand_.size()));
+    double b1 = 1e18, b2 = 1e18;
+    int bi = -1;
+    for (int k = 0; k < n; ++k) {
+      const int j = cand_[k];
+      const double d = descriptor_distance(ref_.desc_ptr(i), cur.desc_ptr(j), bin);
+      if (d < b1) {
+        b2 = b1;
+        b1 = d;
+        bi = j;
+      } else if (d < b2) {
+        b2 = d;
+      }
+    }
+    if (bi < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    if (b1 < best_cur[bi]) {
+      if (best_cur_ref[bi] >= 0) match_of_ref_[best_cur_ref[bi]] = -1;
+      best_cur[bi] = b1;
+      best_cur_ref[bi] = i;
+      match_of_ref_[i] = bi;
+    }
+  }
+  int n = 0;
+  for (int i = 0; i < nref; ++i) n += match_of_ref_[i] >= 0;
+  return n;
+}
+
+namespace {
+
+double score_homography(const Eigen::Matrix3d& H, const std::vector<cv::Point2f>& x0,
+                        const std::vector<cv::Point2f>& x1) {
+  const Eigen::Matrix3d Hi = H.inverse();
+  constexpr double kTh = 5.991, kGamma = 5.991;
+  double s = 0;
+  for (size_t i = 0; i < x0.size(); ++i) {
+    const Eigen::Vector3d a(x0[i].x, x0[i].y, 1), b(x1[i].x, x1[i].y, 1);
+    const Eigen::Vector3d ha = H * a, hb = Hi * b;
+    const double e1 = (ha.head<2>() / ha.z() - b.head<2>()).squaredNorm();
+    const double e2 = (hb.head<2>() / hb.z() - a.head<2>()).squaredNorm();
+    if (e1 < kTh) s += kGamma - e1;
+    if (e2 < kTh) s += kGamma - e2;
+  }
+  return s;
+}
+
+double score_essential(const Eigen::Matrix3d& F, const std::vector<cv::Point2f>& x0,
+                       const std::vector<cv::Point2f>& x1) {
+  constexpr double kTh = 3.841, kGamma = 5.991;
+  double s = 0;
+  const Eigen::Matrix3d Ft = F.transpose();
+  for (size_t i = 0; i < x0.size(); ++i) {
+    const Eigen::Vector2d a(x0[i].x, x0[i].y), b(x1[i].x, x1[i].y);
+    const double e1 = epipolar_dist2(F, a, b);
+    const double e2 = epipolar_dist2(Ft, b, a);
+    if (e1 < kTh) s += kGamma - e1;
+    if (e2 < kTh) s += kGamma - e2;
+  }
+  return s;
+}
+
+struct Hypothesis {
+  Pose T;
+  int good = 0;
+  std::vector<double> parallax_deg;
+  std::vector<int> idx;  // match indices triangulated with enough parallax
+  std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> pts;
+};
+
+void check_motion(const Intrinsics& K, const std::vector<cv::Point2f>& x0,
+                  const std::vector<cv::Point2f>& x1, Hypothesis& h) {
+  const Pose T0;
+  const Eigen::Vector3d c0 = T0.centre(), c1 = h.T.centre();
+  constexpr double kMinCos = 0.99998;   // ~0.36 deg: below this depth sign is unreliable
+  constexpr double kPointCos = 0.9998;  // ~1.15 deg: map points need this parallax
+  constexpr double kReproj2 = 4.0;      // (2 px)^2
+  for (size_t i = 0; i < x0.size(); ++i) {
+    const Eigen::Vector3d b0 = K.unproject(x0[i].x, x0[i].y);
+    const Eigen::Vector3d b1 = K.unproject(x1[i].x, x1[i].y);
+    Eigen::Vector3d p;
+    if (!triangulate_dlt(T0, b0, h.T, b1, p)) continue;
+    const double cosp = parallax_cos(p, c0, c1);
+    const Eigen::Vector3d q = h.T * p;
+    if ((p.z() <= 0 || q.z() <= 0) && cosp < kMinCos) continue;
+    if (p.z() <= 0 || q.z() <= 0) continue;
+    const double e0 = (K.project(p) - Eigen::Vector2d(x0[i].x, x0[i].y)).squaredNorm();
+    const double e1 = (K.project(q) - Eigen::Vector2d(x1[i].x, x1[i].y)).squaredNorm();
+    if (e0 > kReproj2 || e1 > kReproj2) continue;
+    ++h.good;
+    h.parallax_deg.push_back(std::acos(std::min(1.0, cosp)) * 180.0 / M_PI);
+    if (cosp < kPointCos) {
+      h.idx.push_back(static_cast<int>(i));
+      h.pts.push_back(p);
+    }
+  }
+}
+
+Pose from_cv(const cv::Mat& R, const cv::Mat& t) {
+  Pose T;
+  cv::cv2eigen(R, T.R);
+  Eigen::Vector3d tt;
+  cv::cv2eigen(t, tt);
+  T.t = tt;
+  return T;
+}
+
+}  // namespace
+
+InitStatus Initializer::add_frame(const Features& cur, int64_t stamp_ns, InitResult& out) {
+  if (cur.count < params_.min_features) return InitStatus::kNoReference;
+  if (!has_ref_ || ref_age_ >= params_.max_reference_age) {
+    ref_.copy_from(cur);
+    has_ref_ = true;
+    ref_age_ = 0;
+    ref_stamp_ = stamp_ns;
+    return InitStatus::kNoReference;
+  }
+  ++ref_age_;
+  const int nm = match(cur);
+  if (nm < params_.min_matches) {
+    // The view changed too much (or the reference was poor): start again from this frame.
+    ref_.copy_from(cur);
+    ref_age_ = 0;
+    ref_stamp_ = stamp_ns;
+    return InitStatus::kFewMatches;
+  }
+  std::vector<cv::Point2f> x0, x1;
+  std::vector<int> f0, f1;
+  std::vector<double> flow;
+  for (int i = 0; i < ref_.count; ++i) {
+    const int j = match_of_ref_[i];
+    if (j < 0) continue;
+    x0.push_back(ref_.un[i]);
+    x1.push_back(cur.un[j]);
+    f0.push_back(i);
+    f1.push_back(j);
+    flow.push_back(std::hypot(ref_.un[i].x - cur.un[j].x, ref_.un[i].y - cur.un[j].y));
+  }
+  std::nth_element(flow.begin(), flow.begin() + flow.size() / 2, flow.end());
+  // Motion gate: most of the scene must move in the image (camera motion, not noise or a few
+  // moving objects).
+  if (flow[flow.size() / 2] < params_.min_median_flow_px * cur.width) {
+    return InitStatus::kLittleMotion;
+  }
+  const cv::Matx33d Kcv(K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1);
+  cv::theRNG().state = 12345;  // deterministic RANSAC
+  cv::Mat maskE, maskH;
+  cv::Mat E = cv::findEssentialMat(x0, x1, Kcv, cv::RANSAC, 0.999, 1.0, maskE);
+  cv::Mat H = cv::findHomography(x0, x1, cv::RANSAC, 2.0, maskH, 2000, 0.999);
+  if (E.empty() || E.rows != 3 || E.cols != 3 || H.empty()) return InitStatus::kModelFailed;
+  Eigen::Matrix3d Ee, He;
+  cv::cv2eigen(E, Ee);
+  cv::cv2eigen(H, He);
+  Eigen::Matrix3d Kinv;
+  Kinv << 1.0 / K_.fx, 0, -K_.cx / K_.fx, 0, 1.0 / K_.fy, -K_.cy / K_.fy, 0, 0, 1;
+  const Eigen::Matrix3d F = Kinv.transpose() * Ee * Kinv;
+  const double sH = score_homography(He, x0, x1);
+  const double sE = score_essential(F, x0, x1);
+  const bool use_h = sH + sE > 0 && sH / (sH + sE) > params_.homography_ratio;
+
+  std::vector<Hypothesis> hyps;
+  if (use_h) {
+    std::vector<cv::Mat> Rs, ts, ns;
+    cv::decomposeHomographyMat(H, Kcv, Rs, ts, ns);
+    for (size_t k = 0; k < Rs.size(); ++k) {
+      Hypothesis h;
+      h.T = from_cv(Rs[k], ts[k]);
+      hyps.push_back(std::move(h));
+    }
+  } else {
+    cv::Mat R1, R2, t;
+    cv::decomposeEssentialMat(E, R1, R2, t);
+    for (const cv::Mat* R : {&R1, &R2}) {
+      for (double sgn : {1.0, -1.0}) {
+        Hypothesis h;
+        h.T = from_cv(*R, t * sgn);
+        hyps.push_back(std::move(h));
+      }
+    }
+  }
+  for (auto& h : hyps) {
+    if (h.T.t.norm() < 1e-12) continue;
+    h.T.t.normalize();
+    check_motion(K_, x0, x1, h);
+  }
+  std::sort(hyps.begin(), hyps.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.good > b.good; });
+  if (hyps.empty() || hyps[0].good == 0) return InitStatus::kModelFailed;
+  // The best hypothesis must be clearly better than any other.
+  if (hyps.size() > 1 && hyps[1].good > 0.75 * hyps[0].good) return InitStatus::kAmbiguous;
+  Hypothesis& best = hyps[0];
+  if (best.good < params_.min_inlier_fraction * static_cast<double>(x0.size())) {
+    return InitStatus::kInconsistent;
+  }
+  std::vector<double> par = best.parallax_deg;
+  std::sort(par.begin(), par.end());
+  const size_t qi =
+      std::min(par.size() - 1, static_cast<size_t>(params_.parallax_quantile * (par.size() - 1)));
+  if (par[qi] < params_.min_parallax_deg) return InitStatus::kLowParallax;
+  if (static_cast<int>(best.idx.size()) < params_.min_points) return InitStatus::kFewPoints;
+
+  // Two-view bundle adjustment in a scratch map (reference keyframe fixed).
+  Map m;
+  Keyframe& k0 = m.keyframes[0];
+  k0.id = 0;
+  k0.fixed = true;
+  k0.features.copy_from(ref_);
+  k0.point_of.assign(ref_.count, -1);
+  Keyframe& k1 = m.keyframes[1];
+  k1.id = 1;
+  k1.T_cam_world = best.T;
+  k1.features.copy_from(cur);
+  k1.point_of.assign(cur.count, -1);
+  for (size_t k = 0; k < best.idx.size(); ++k) {
+    MapPoint p;
+    p.id = static_cast<int64_t>(k);
+    p.p_world = best.pts[k];
+    m.points.emplace(p.id, p);
+    m.add_observation(p.id, 0, f0[best.idx[k]]);
+    m.add_observation(p.id, 1, f1[best.idx[k]]);
+  }
+  BundleAdjustmentParams ba = ba_;
+  ba.iterations = 20;
+  bundle_adjust(m, K_, {0, 1}, ba);
+  if (static_cast<int>(m.points.size()) < params_.min_points) return InitStatus::kFewPoints;
+  // Scale: median depth in the reference camera = 1.
+  std::vector<double> depth;
+  for (const auto& kv : m.points) depth.push_back(kv.second.p_world.z());
+  std::nth_element(depth.begin(), depth.begin() + depth.size() / 2, depth.end());
+  const double med = depth[depth.size() / 2];
+  if (!(med > 1e-9)) return InitStatus::kFewPoints;
+  const double s = 1.0 / med;
+  out.T1 = m.keyframes[1].T_cam_world;
+  out.T1.t *= s;
+  out.points.clear();
+  for (const auto& kv : m.points) {
+    InitPoint ip;
+    ip.p_world = kv.second.p_world * s;
+    for (const auto& o : kv.second.obs) {
+      if (o.kf == 0) ip.feat0 = o.feat;
+      if (o.kf == 1) ip.feat1 = o.feat;
+    }
+    if (ip.feat0 >= 0 && ip.feat1 >= 0) out.points.push_back(ip);
+  }
+  out.homography = use_h;
+  out.median_parallax_deg = par[par.size() / 2];
+  out.reference = &ref_;
+  out.reference_stamp_ns = ref_stamp_;
+  return InitStatus::kOk;
+}
+
+}  // namespace rdslam

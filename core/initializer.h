@@ -1,0 +1,108 @@
+// Two-frame map initialization (Sec. 3: "we first initialize the structure and motion with
+// two initially selected keyframes").
+//
+// The first frame with enough features becomes the reference. Each later frame is matched to
+// it (window search, ratio test, mutual best). Then, in order:
+//  1. Motion gate: the median image displacement of the matches must exceed
+//     `min_median_flow_px`. A camera at rest, or a fixed camera watching people walk (most
+//     matches on the static background), never passes, so noise and moving objects cannot
+//     create a map.
+//  2. Both models are fitted with RANSAC: the essential matrix (five-point, Nister) and a
+//     homography. Model selection uses ORB-SLAM's score (Mur-Artal et al. 2015, Sec. IV):
+//     S_M = sum_i rho(d_i^2 / sigma^2), rho(x) = Gamma - x for x < T_M else 0, with symmetric
+//     transfer errors for H (T_H = 5.991) and epipolar distances for E (T_E = 3.841),
+//     Gamma = 5.991; the homography is chosen when R_H = S_H / (S_H + S_E) > 0.45 (planar or
+//     low-parallax scenes), otherwise the essential matrix.
+//  3. All motion hypotheses of the chosen model (4 from E, up to 4 from H) are triangulated;
+//     the best must triangulate clearly more points in front of both cameras than the second.
+//  4. Parallax gate: the `parallax_quantile` quantile of the triangulation angles must exceed
+//     `min_parallax_deg`, and at least `min_inlier_fraction` of all matches must be
+//     consistent with the rigid motion (refuses independently moving points).
+//  5. Two-view bundle adjustment, then the scale is fixed by setting the median scene depth
+//     in the first camera to 1.
+//
+// Ownership: owns copies of the reference frame's features. Threads: tracker thread only.
+// Allocates (OpenCV RANSAC) while initializing; the tracker's steady state does not use it.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/bundle_adjustment.h"
+#include "core/features.h"
+#include "core/geometry.h"
+#include "core/params.h"
+
+namespace rdslam {
+
+struct InitializerParams {
+  int min_features = 100;            // frames with fewer features are not used
+  int min_matches = 100;             // matches to the reference; fewer resets the reference
+  double search_radius_frac = 0.15;  // window radius as a fraction of the image width
+  double min_median_flow_px = 0.01;  // as a fraction of the image width (motion gate)
+  double homography_ratio = 0.45;    // R_H above this selects the homography
+  double min_parallax_deg = 1.0;     // parallax gate
+  double parallax_quantile = 0.5;    // which triangulation angle must exceed it (0.5: median)
+  double min_inlier_fraction = 0.6;  // of matches, consistent with the chosen motion
+  int min_points = 80;               // triangulated points needed
+  int max_reference_age = 60;        // frames; then the reference is renewed
+
+  void visit(ParamVisitor& v);
+};
+
+struct InitPoint {
+  int feat0 = -1, feat1 = -1;  // feature indices in the reference and current frame
+  Eigen::Vector3d p_world{0, 0, 0};
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+struct InitResult {
+  Pose T1;  // T_cam1_world; the reference camera is the world frame
+  std::vector<InitPoint, Eigen::aligned_allocator<InitPoint>> points;
+  bool homography = false;
+  double median_parallax_deg = 0.0;
+  const Features* reference = nullptr;  // valid until the next add_frame()/reset()
+  int64_t reference_stamp_ns = 0;
+};
+
+// Why the last frame did not initialize (diagnostics and tests).
+enum class InitStatus {
+  kOk,
+  kNoReference,
+  kFewMatches,
+  kLittleMotion,
+  kModelFailed,
+  kAmbiguous,
+  kLowParallax,
+  kInconsistent,
+  kFewPoints
+};
+const char* to_string(InitStatus s);
+
+class Initializer {
+ public:
+  Initializer(const InitializerParams& params, const FeatureParams& features, const Intrinsics& K,
+              const BundleAdjustmentParams& ba);
+  void reset();
+  // Returns kOk and fills `out` when the map can be initialized from the reference and `cur`.
+  InitStatus add_frame(const Features& cur, int64_t stamp_ns, InitResult& out);
+  const Features& reference() const { return ref_; }
+  int64_t reference_stamp() const { return has_ref_ ? ref_stamp_ : -1; }
+  int reference_age() const { return ref_age_; }
+
+ private:
+  int match(const Features& cur);
+
+  InitializerParams params_;
+  FeatureParams fparams_;
+  Intrinsics K_;
+  BundleAdjustmentParams ba_;
+  Features ref_;
+  bool has_ref_ = false;
+  int ref_age_ = 0;
+  int64_t ref_stamp_ = 0;
+  std::vector<int> match_of_ref_;  // ref feature -> cur feature or -1
+  std::vector<int> cand_;
+};
+
+}  // namespace rdslam

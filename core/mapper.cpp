@@ -1,0 +1,524 @@
+#include "core/mapper.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+#include <unordered_set>
+
+#include "core/log.h"
+#include "core/prefix_visitor.h"
+
+namespace rdslam {
+
+void MapperParams::visit(ParamVisitor& v) {
+  v.field("m2", m2, 0, 100000, "paper Sec. 4: new points a keyframe must contribute (50-100)");
+  v.field("related_keyframes", related_keyframes, 1, 50,
+          "paper Sec. 4: keyframes matched for triangulation");
+  v.field("max_keyframes", max_keyframes, 3, 100000, "cap on keyframes (oldest culled)");
+  v.field("max_points", max_points, 100, 10000000, "cap on map points");
+  v.field("min_parallax_deg", min_parallax_deg, 0.0, 45.0, "triangulation angle of new points");
+  v.field("redundant_fraction", redundant_fraction, 0.0, 1.0,
+          "keyframe culling: invalid or shared points above this fraction (Sec. 4: 90%)");
+  PrefixVisitor ba_v(v, "ba_");
+  ba.visit(ba_v);
+}
+
+Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const CameraModel& camera,
+               std::shared_ptr<SlamLink> link)
+    : params_(params),
+      fparams_(features),
+      K_{camera.fx, camera.fy, camera.cx, camera.cy},
+      link_(std::move(link)) {
+  cand_.resize(2048);
+}
+
+bool Mapper::step(int timeout_ms) {
+  KeyframeCandidate* c = link_->candidates.front();
+  if (!c) {
+    const uint32_t ticket = link_->bell.ticket();
+    c = link_->candidates.front();
+    if (!c && timeout_ms > 0) {
+      link_->bell.wait(ticket, timeout_ms);
+      c = link_->candidates.front();
+    }
+    if (!c) {
+      link_->index.collect();
+      return false;
+    }
+  }
+  link_->mapper_busy.store(1, std::memory_order_relaxed);
+  process(*c);
+  link_->candidates.pop();
+  link_->mapper_busy.store(0, std::memory_order_relaxed);
+  return true;
+}
+
+void Mapper::process(const KeyframeCandidate& c) {
+  switch (c.kind) {
+    case KeyframeCandidate::Kind::kReset:
+      map_ = Map();
+      epoch_ = c.epoch;
+      link_->keyframes.store(0);
+      link_->points.store(0);
+      return;
+    case KeyframeCandidate::Kind::kInit:
+      handle_init(c);
+      return;
+    case KeyframeCandidate::Kind::kKeyframe:
+      if (c.epoch == epoch_ && !map_.keyframes.empty()) handle_keyframe(c);
+      return;
+  }
+}
+
+void Mapper::handle_init(const KeyframeCandidate& c) {
+  map_ = Map();
+  epoch_ = c.epoch;
+  Keyframe& k0 = map_.keyframes[0];
+  k0.id = 0;
+  k0.fixed = true;
+  k0.stamp_ns = c.stamp0_ns;
+  k0.features.copy_from(c.features0);
+  k0.point_of.assign(c.features0.count, -1);
+  c.image0.copyTo(k0.image);
+  Keyframe& k1 = map_.keyframes[1];
+  k1.id = 1;
+  k1.stamp_ns = c.stamp_ns;
+  k1.T_cam_world = c.T_cam_world;
+  k1.features.copy_from(c.features);
+  k1.point_of.assign(c.features.count, -1);
+  c.image.copyTo(k1.image);
+  const size_t bytes = static_cast<size_t>(c.features.desc.cols) * c.features.desc.elemSize();
+  for (size_t k = 0; k < c.init_points.size(); ++k) {
+    const InitPoint& ip = c.init_points[k];
+    MapPoint p;
+    p.id = static_cast<int64_t>(k);
+    p.p_world = ip.p_world;
+    p.first_kf = 0;
+    p.created_kf_seq = 0;
+    const uint8_t* d = c.features.desc_ptr(ip.feat1);
+    p.desc.assign(d, d + bytes);
+    map_.points.emplace(p.id, std::move(p));
+    map_.add_observation(static_cast<int64_t>(k), 0, ip.feat0);
+    map_.add_observation(static_cast<int64_t>(k), 1, ip.feat1);
+  }
+  map_.next_point_id = static_cast<int64_t>(c.init_points.size());
+  map_.next_kf_id = 2;
+  map_.kf_seq = 2;
+  for (auto& kv : map_.points) {
+    map_.update_point_geometry(kv.second, float(fparams_.scale_factor), fparams_.levels);
+  }
+  stats_.keyframes_accepted += 2;
+  publish();
+}
+
+std::vector<int> Mapper::related_keyframes(int kf) const {
+  std::vector<int> out;
+  for (const auto& [n, id] : map_.covisible(kf)) {
+    if (static_cast<int>(out.size()) >= params_.related_keyframes) break;
+    out.push_back(id);
+  }
+  // Too few covisible keyframes (e.g. just after relocalization): add the most recent ones.
+  for (auto it = map_.keyframes.rbegin();
+       it != map_.keyframes.rend() && static_cast<int>(out.size()) < params_.related_keyframes;
+       ++it) {
+    if (it->first == kf || std::find(out.begin(), out.end(), it->first) != out.end()) continue;
+    out.push_back(it->first);
+  }
+  return out;
+}
+
+int Mapper::triangulate(int kf_id, const std::vector<int>& related, std::vector<int64_t>& created) {
+  Keyframe& C = *map_.keyframe(kf_id);
+  const Features& fc = C.features;
+  const bool bin = fc.binary;
+  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
+  const double ratio = bin ? 0.8 : fparams_.sift_ratio;
+  const double min_cos = std::cos(params_.min_parallax_deg * M_PI / 180.0);
+  const Eigen::Vector3d cc = C.T_cam_world.centre();
+  std::vector<char> used(fc.count, 0);
+  for (int j = 0; j < fc.count; ++j) used[j] = C.point_of[j] >= 0;
+  int n_new = 0;
+  for (int rid : related) {
+    Keyframe* Rp = map_.keyframe(rid);
+    if (!Rp) continue;
+    Keyframe& R = *Rp;
+    const Features& fr = R.features;
+    const Eigen::Vector3d cr = R.T_cam_world.centre();
+    // Skip pairs whose baseline is tiny compared with the scene depth (ORB-SLAM's test).
+    std::vector<double> depth;
+    for (int i = 0; i < fr.count; ++i) {
+      if (R.point_of[i] < 0) continue;
+      const MapPoint* p = map_.point(R.point_of[i]);
+      if (p) depth.push_back((R.T_cam_world * p->p_world).z());
+    }
+    if (depth.empty()) continue;
+    std::nth_element(depth.begin(), depth.begin() + depth.size() / 2, depth.end());
+    if ((cc - cr).norm() / std::max(1e-9, depth[depth.size() / 2]) < 0.01) continue;
+    const Eigen::Matrix3d F = fundamental_from_poses(K_, R.T_cam_world, C.T_cam_world);
+    // Epipole in C (projection of R's centre): matches near it have no parallax.
+    const Eigen::Vector3d ec = C.T_cam_world * cr;
+    const bool has_epi = ec.z() > 1e-9;
+    const Eigen::Vector2d epi = has_epi ? K_.project(ec) : Eigen::Vector2d(-1e9, -1e9);
+    std::vector<int> r_free;
+    for (int i = 0; i < fr.count; ++i) {
+      if (R.point_of[i] < 0) r_free.push_back(i);
+    }
+    std::vector<int> match_r(fc.count, -1);
+    std::vector<double> claim(fr.count, 1e30);
+    std::vector<int> claim_j(fr.count, -1);
+    for (int j = 0; j < fc.count; ++j) {
+      if (used[j]) continue;
+      const Eigen::Vector2d xj(fc.un[j].x, fc.un[j].y);
+      if ((xj - epi).squaredNorm() < 100.0 * fc.scale[j] * fc.scale[j]) continue;
+      // Epipolar line of j in R: l = F^T x_j; distance of x_i to it.
+      const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
+      const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
+      if (ln < 1e-12) continue;
+      double b1 = 1e30, b2 = 1e30;
+      int bi = -1;
+      for (int i : r_free) {
+        const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
+        if (e * e > 3.84 * fr.scale[i] * fr.scale[i]) continue;
+        if (bin && std::abs(fr.level[i] - fc.level[j]) > 2) continue;
+        const double d = descriptor_distance(fr.desc_ptr(i), fc.desc_ptr(j), bin);
+        if (d < b1) {
+          b2 = b1;
+          b1 = d;
+          bi = i;
+        } else if (d < b2) {
+          b2 = d;
+        }
+      }
+      if (bi < 0 || b1 > max_d || (b2 < 1e29 && b1 > ratio * b2)) continue;
+      if (b1 < claim[bi]) {
+        if (claim_j[bi] >= 0) match_r[claim_j[bi]] = -1;
+        claim[bi] = b1;
+        claim_j[bi] = j;
+        match_r[j] = bi;
+      }
+    }
+    for (int j = 0; j < fc.count; ++j) {
+      const int i = match_r[j];
+      if (i < 0 || used[j] || R.point_of[i] >= 0) continue;
+      const Eigen::Vector3d bj = K_.unproject(fc.un[j].x, fc.un[j].y);
+      const Eigen::Vector3d bi = K_.unproject(fr.un[i].x, fr.un[i].y);
+      // Rays must not be near-parallel (triangulation angle from the rays themselves).
+      const Eigen::Vector3d rj = C.T_cam_world.R.transpose() * bj.normalized();
+      const Eigen::Vector3d ri = R.T_cam_world.R.transpose() * bi.normalized();
+      if (rj.dot(ri) > 0.99999) continue;
+      Eigen::Vector3d p;
+      if (!triangulate_dlt(R.T_cam_world, bi, C.T_cam_world, bj, p)) continue;
+      if (parallax_cos(p, cr, cc) > min_cos) continue;
+      const Eigen::Vector3d pr = R.T_cam_world * p, pc = C.T_cam_world * p;
+      if (pr.z() <= 0 || pc.z() <= 0) continue;
+      const double er = (K_.project(pr) - Eigen::Vector2d(fr.un[i].x, fr.un[i].y)).squaredNorm();
+      const double ej = (K_.project(pc) - Eigen::Vector2d(fc.un[j].x, fc.un[j].y)).squaredNorm();
+      if (er > 5.991 * fr.scale[i] * fr.scale[i] || ej > 5.991 * fc.scale[j] * fc.scale[j]) {
+        continue;
+      }
+      MapPoint mp;
+      mp.id = map_.next_point_id++;
+      mp.p_world = p;
+      mp.first_kf = rid < kf_id ? rid : kf_id;
+      mp.created_kf_seq = map_.kf_seq;
+      const size_t bytes = static_cast<size_t>(fc.desc.cols) * fc.desc.elemSize();
+      mp.desc.assign(fc.desc_ptr(j), fc.desc_ptr(j) + bytes);
+      const int64_t pid = mp.id;
+      map_.points.emplace(pid, std::move(mp));
+      map_.add_observation(pid, kf_id, j);
+      map_.add_observation(pid, rid, i);
+      used[j] = 1;
+      created.push_back(pid);
+      ++n_new;
+    }
+  }
+  return n_new;
+}
+
+int Mapper::project_and_add(int64_t pid, int kf_id) {
+  MapPoint* p = map_.point(pid);
+  Keyframe* k = map_.keyframe(kf_id);
+  if (!p || !k) return 0;
+  for (const auto& o : p->obs) {
+    if (o.kf == kf_id) return 0;
+  }
+  const Eigen::Vector3d pc = k->T_cam_world * p->p_world;
+  if (pc.z() <= 1e-6) return 0;
+  const Eigen::Vector2d uv = K_.project(pc);
+  const Features& f = k->features;
+  if (uv.x() < 0 || uv.y() < 0 || uv.x() >= f.width || uv.y() >= f.height) return 0;
+  const Eigen::Vector3d v = k->T_cam_world.centre() - p->p_world;
+  const double dist = v.norm();
+  const bool bin = f.binary;
+  if (bin && (dist < p->min_dist || dist > p->max_dist)) return 0;
+  if (p->normal.dot(v) < 0.5 * dist) return 0;
+  int lvl = 0, lo = -1, hi = 1 << 20;
+  if (bin) {
+    lvl = static_cast<int>(std::ceil(std::log(p->max_dist / 1.2 / dist) /
+                                     std::log(std::max(1.0001, fparams_.scale_factor))));
+    lvl = std::max(0, std::min(fparams_.levels - 1, lvl));
+    lo = lvl - 1;
+    hi = lvl + 1;
+  }
+  const double rad = 3.0 * std::pow(fparams_.scale_factor, lvl);
+  const int n = f.radius_search(float(uv.x()), float(uv.y()), float(rad), lo, hi, cand_.data(),
+                                static_cast<int>(cand_.size()));
+  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
+  double b1 = 1e30;
+  int bj = -1;
+  for (int q = 0; q < n; ++q) {
+    const int j = cand_[q];
+    if (k->point_of[j] >= 0) continue;
+    const double e2 = (Eigen::Vector2d(f.un[j].x, f.un[j].y) - uv).squaredNorm();
+    if (e2 > 5.991 * f.scale[j] * f.scale[j]) continue;
+    const double d = descriptor_distance(p->desc.data(), f.desc_ptr(j), bin);
+    if (d < b1) {
+      b1 = d;
+      bj = j;
+    }
+  }
+  if (bj < 0 || b1 > max_d) return 0;
+  return map_.add_observation(pid, kf_id, bj) ? 1 : 0;
+}
+
+int Mapper::fuse(int kf_id, const std::vector<int>& related) {
+  int added = 0;
+  Keyframe& C = *map_.keyframe(kf_id);
+  // Points of the related keyframes (and their best neighbours) into the new keyframe.
+  std::set<int> neighbourhood(related.begin(), related.end());
+  for (int rid : related) {
+    const auto cov = map_.covisible(rid);
+    for (size_t k = 0; k < cov.size() && k < 5; ++k) neighbourhood.insert(cov[k].second);
+  }
+  neighbourhood.erase(kf_id);
+  std::unordered_set<int64_t> seen;
+  for (int64_t pid : C.point_of) {
+    if (pid >= 0) seen.insert(pid);
+  }
+  for (int nid : neighbourhood) {
+    const Keyframe* N = map_.keyframe(nid);
+    if (!N) continue;
+    for (int64_t pid : N->point_of) {
+      if (pid < 0 || seen.count(pid)) continue;
+      seen.insert(pid);
+      added += project_and_add(pid, kf_id);
+    }
+  }
+  // The new keyframe's points into the related keyframes.
+  std::vector<int64_t> mine;
+  for (int64_t pid : C.point_of) {
+    if (pid >= 0) mine.push_back(pid);
+  }
+  for (int rid : related) {
+    for (int64_t pid : mine) added += project_and_add(pid, rid);
+  }
+  return added;
+}
+
+void Mapper::update_descriptor(MapPoint& p) const {
+  // The observation descriptor with the least median distance to the others (ORB-SLAM).
+  const int n = static_cast<int>(p.obs.size());
+  if (n < 3) return;
+  std::vector<const uint8_t*> d;
+  for (const auto& o : p.obs) {
+    auto it = map_.keyframes.find(o.kf);
+    if (it != map_.keyframes.end()) d.push_back(it->second.features.desc_ptr(o.feat));
+  }
+  const int m = static_cast<int>(d.size());
+  if (m < 3) return;
+  const bool bin = fparams_.mode != "sift";
+  double best = 1e30;
+  int bi = 0;
+  std::vector<double> row(m);
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) row[b] = a == b ? 0.0 : descriptor_distance(d[a], d[b], bin);
+    std::nth_element(row.begin(), row.begin() + (m - 1) / 2, row.end());
+    if (row[(m - 1) / 2] < best) {
+      best = row[(m - 1) / 2];
+      bi = a;
+    }
+  }
+  std::copy(d[bi], d[bi] + p.desc.size(), p.desc.begin());
+}
+
+void Mapper::handle_keyframe(const KeyframeCandidate& c) {
+  const int id = map_.next_kf_id;
+  {
+    Keyframe& kf = map_.keyframes[id];
+    kf.id = id;
+    kf.stamp_ns = c.stamp_ns;
+    kf.T_cam_world = c.T_cam_world;
+    kf.features.copy_from(c.features);
+    kf.point_of.assign(c.features.count, -1);
+  }
+  int tracked = 0;
+  for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
+    const int64_t pid = c.point_of[j];
+    if (pid >= 0 && map_.add_observation(pid, id, j)) ++tracked;
+  }
+  const std::vector<int> related = related_keyframes(id);
+  std::vector<int64_t> created;
+  const int n_new = triangulate(id, related, created);
+  stats_.last_new_points = n_new;
+  // Sec. 4 condition 3: only a frame contributing more than m2 new points becomes a keyframe.
+  if (n_new <= params_.m2) {
+    for (int64_t pid : created) map_.erase_point(pid);
+    map_.erase_keyframe(id);
+    ++stats_.keyframes_rejected;
+    return;
+  }
+  ++map_.next_kf_id;
+  ++map_.kf_seq;
+  c.image.copyTo(map_.keyframes[id].image);
+  ++stats_.keyframes_accepted;
+  stats_.points_created += n_new;
+  fuse(id, related);
+  // Multi-view estimate of the new tracks (Sec. 4) and geometry of every touched point.
+  for (int64_t pid : created) {
+    MapPoint* p = map_.point(pid);
+    if (!p) continue;
+    if (p->obs.size() >= 3) {
+      std::vector<Pose> poses;
+      std::vector<Eigen::Vector2d> obs;
+      std::vector<double> sig;
+      for (const auto& o : p->obs) {
+        const Keyframe& k = map_.keyframes.at(o.kf);
+        poses.push_back(k.T_cam_world);
+        obs.emplace_back(k.features.un[o.feat].x, k.features.un[o.feat].y);
+        sig.push_back(k.features.scale[o.feat]);
+      }
+      Eigen::Vector3d x = p->p_world;
+      if (refine_point(K_, poses.data(), obs.data(), sig.data(), static_cast<int>(poses.size()),
+                       x) >= 0) {
+        p->p_world = x;
+      }
+    }
+  }
+  for (int64_t pid : map_.keyframes.at(id).point_of) {
+    if (pid < 0) continue;
+    MapPoint* p = map_.point(pid);
+    if (!p) continue;
+    map_.update_point_geometry(*p, float(fparams_.scale_factor), fparams_.levels);
+    update_descriptor(*p);
+  }
+  // Local bundle adjustment: the new keyframe and its most covisible keyframes.
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<int> window{id};
+  for (const auto& [n, kid] : map_.covisible(id)) {
+    if (static_cast<int>(window.size()) >= params_.ba.window) break;
+    window.push_back(kid);
+  }
+  bundle_adjust(map_, K_, window, params_.ba);
+  stats_.last_ba_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  for (int kid : window) {
+    const Keyframe* k = map_.keyframe(kid);
+    if (!k) continue;
+    for (int64_t pid : k->point_of) {
+      MapPoint* p = pid >= 0 ? map_.point(pid) : nullptr;
+      if (p) map_.update_point_geometry(*p, float(fparams_.scale_factor), fparams_.levels);
+    }
+  }
+  cull(id);
+  publish();
+}
+
+void Mapper::cull(int kf_id) {
+  // Recent points: still seen by <= 2 keyframes two keyframes after creation.
+  std::vector<int64_t> bad;
+  for (const auto& [pid, p] : map_.points) {
+    const int age = map_.kf_seq - p.created_kf_seq;
+    if (p.obs.size() < 2 || (age >= 3 && age <= 4 && p.obs.size() <= 2)) bad.push_back(pid);
+  }
+  for (int64_t pid : bad) map_.erase_point(pid);
+  stats_.points_culled += static_cast<int>(bad.size());
+  // Redundant or invalid keyframes (Sec. 4's 90% rule), among the new keyframe's neighbours.
+  for (const auto& [n, kid] : map_.covisible(kf_id)) {
+    Keyframe* k = map_.keyframe(kid);
+    if (!k || k->fixed || kid == kf_id) continue;
+    int total = 0, redundant = 0;
+    for (int64_t pid : k->point_of) {
+      const MapPoint* p = pid >= 0 ? map_.point(pid) : nullptr;
+      if (!p) continue;
+      ++total;
+      if (!p->valid || p->obs.size() >= 4) ++redundant;  // seen by >= 3 other keyframes
+    }
+    if (total > 0 && redundant > params_.redundant_fraction * total) {
+      map_.erase_keyframe(kid);
+      ++stats_.keyframes_culled;
+    }
+  }
+  // Caps.
+  while (static_cast<int>(map_.keyframes.size()) > params_.max_keyframes) {
+    const int oldest = map_.keyframes.begin()->first;
+    if (oldest == kf_id) break;
+    map_.erase_keyframe(oldest);
+    ++stats_.keyframes_culled;
+    if (!map_.keyframes.empty()) map_.keyframes.begin()->second.fixed = true;  // new gauge
+  }
+  bad.clear();
+  for (const auto& [pid, p] : map_.points) {
+    if (p.obs.size() < 2) bad.push_back(pid);
+  }
+  for (int64_t pid : bad) map_.erase_point(pid);
+  stats_.points_culled += static_cast<int>(bad.size());
+  if (static_cast<int>(map_.points.size()) > params_.max_points) {
+    std::vector<std::pair<std::pair<size_t, int64_t>, int64_t>> order;
+    for (const auto& [pid, p] : map_.points) order.push_back({{p.obs.size(), pid}, pid});
+    std::sort(order.begin(), order.end());
+    const size_t excess = map_.points.size() - static_cast<size_t>(params_.max_points);
+    for (size_t i = 0; i < excess; ++i) map_.erase_point(order[i].second);
+    stats_.points_culled += static_cast<int>(excess);
+  }
+}
+
+void Mapper::publish() {
+  auto s = std::make_shared<MapSnapshot>();
+  s->version = ++version_;
+  s->epoch = epoch_;
+  s->binary = fparams_.mode != "sift";
+  std::unordered_map<int, int> kf_index;
+  for (const auto& [id, k] : map_.keyframes) {
+    kf_index[id] = static_cast<int>(s->kf_ids.size());
+    s->kf_ids.push_back(id);
+    s->kf_pose.push_back(k.T_cam_world);
+    int n = 0;
+    for (int64_t pid : k.point_of) n += pid >= 0;
+    s->kf_points.push_back(n);
+  }
+  const int cols = s->binary ? 32 : 128;
+  const int type = s->binary ? CV_8U : CV_32F;
+  int rows = 0;
+  for (const auto& kv : map_.points) rows += kv.second.valid && kv.second.obs.size() >= 2;
+  s->desc.create(std::max(1, rows), cols, type);
+  s->obs_start.push_back(0);
+  s->row_of.reserve(static_cast<size_t>(rows) * 2);
+  for (const auto& [pid, p] : map_.points) {
+    if (!p.valid || p.obs.size() < 2) continue;
+    const int r = static_cast<int>(s->ids.size());
+    s->ids.push_back(pid);
+    s->p_world.push_back(p.p_world);
+    s->normal.push_back(p.normal.cast<float>());
+    s->min_dist.push_back(p.min_dist);
+    s->max_dist.push_back(p.max_dist);
+    std::copy(p.desc.begin(), p.desc.end(), s->desc.ptr<uint8_t>(r));
+    for (const auto& o : p.obs) {
+      auto it = kf_index.find(o.kf);
+      if (it != kf_index.end()) s->obs_kf.push_back(it->second);
+    }
+    s->obs_start.push_back(static_cast<int>(s->obs_kf.size()));
+    s->row_of.emplace(pid, r);
+  }
+  if (!s->binary && rows > 0) {
+    // The paper's KD-tree over the reference features (FLANN, randomised k-d trees).
+    s->kdtree = std::make_unique<cv::flann::Index>(s->desc.rowRange(0, rows),
+                                                   cv::flann::KDTreeIndexParams(4));
+  }
+  link_->keyframes.store(static_cast<int>(map_.keyframes.size()));
+  link_->points.store(rows);
+  link_->index.publish(std::move(s));
+  ++stats_.snapshots;
+}
+
+}  // namespace rdslam

@@ -1,0 +1,84 @@
+// The mapper (Sec. 3-4): takes potential keyframes from the tracker, triangulates new points
+// against the 5 most related keyframes (maximum common features) with the epipolar
+// constraint, estimates each track's 3D position by minimising its reprojection error over
+// all views (Sec. 4's track equation), accepts the frame as a keyframe only if it contributes
+// more than m2 new points (Sec. 4 condition 3), fuses observations by projection, runs local
+// bundle adjustment (core/bundle_adjustment.h), culls points and keyframes, and publishes a
+// new matching index (core/match_index.h) for the tracker.
+//
+// Culling (bounded map):
+//  - recent points: a point still seen by at most 2 keyframes two keyframes after its
+//    creation is removed (ORB-SLAM's rule; monocular points need a third view to be trusted);
+//  - keyframes: one whose points are invalid (V(X) = 0) or observed by at least 3 other
+//    keyframes for more than `redundant_fraction` (90%, Sec. 4) of its points is removed;
+//  - caps: above `max_keyframes` the oldest keyframe goes; above `max_points` the points
+//    with the fewest observations (oldest first) go.
+//
+// Ownership: the Mapper owns the Map. Threads: mapper thread only (step()); in offline runs
+// the single thread alternates tracker and mapper.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/bundle_adjustment.h"
+#include "core/features.h"
+#include "core/keyframe.h"
+#include "core/map.h"
+#include "core/params.h"
+
+namespace rdslam {
+
+struct MapperParams {
+  int m2 = 50;                      // paper Sec. 4: new points a keyframe must contribute
+  int related_keyframes = 5;        // paper Sec. 4: the 5 most related keyframes
+  int max_keyframes = 150;          // cap
+  int max_points = 20000;           // cap
+  double min_parallax_deg = 1.0;    // new points need this triangulation angle
+  double redundant_fraction = 0.9;  // keyframe culling (Sec. 4's 90%)
+  BundleAdjustmentParams ba;
+
+  void visit(ParamVisitor& v);
+};
+
+struct MapperStats {
+  int keyframes_accepted = 0, keyframes_rejected = 0, keyframes_culled = 0;
+  int points_created = 0, points_culled = 0;
+  int last_new_points = 0;
+  double last_ba_ms = 0.0;
+  int snapshots = 0;
+};
+
+class Mapper {
+ public:
+  Mapper(const MapperParams& params, const FeatureParams& features, const CameraModel& camera,
+         std::shared_ptr<SlamLink> link);
+  // Processes one candidate, waiting up to `timeout_ms` for one. False if there was none.
+  bool step(int timeout_ms);
+  const Map& map() const { return map_; }
+  const MapperStats& stats() const { return stats_; }
+
+ private:
+  void process(const KeyframeCandidate& c);
+  void handle_init(const KeyframeCandidate& c);
+  void handle_keyframe(const KeyframeCandidate& c);
+  std::vector<int> related_keyframes(int kf) const;
+  int triangulate(int kf, const std::vector<int>& related, std::vector<int64_t>& created);
+  int fuse(int kf, const std::vector<int>& related);
+  int project_and_add(int64_t pid, int kf);
+  void update_descriptor(MapPoint& p) const;
+  void cull(int kf);
+  void publish();
+
+  MapperParams params_;
+  FeatureParams fparams_;
+  Intrinsics K_;
+  std::shared_ptr<SlamLink> link_;
+  Map map_;
+  uint32_t epoch_ = 0;
+  uint64_t version_ = 0;
+  MapperStats stats_;
+  std::vector<int> cand_;
+};
+
+}  // namespace rdslam

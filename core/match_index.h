@@ -1,0 +1,75 @@
+// The matching index of Sec. 3: the reference features (valid 3D points with descriptors)
+// that the tracker matches every frame against, double-buffered as in the paper ("one KD-tree
+// active for real-time matching, the other waiting for updating").
+//
+// The mapper builds a complete immutable MapSnapshot (flat arrays of point positions,
+// normals, descriptors, observing keyframes, keyframe poses, and in SIFT mode the FLANN
+// KD-tree of the descriptors) in its own thread, and publishes it with one atomic pointer
+// swap. The tracker picks up the newest snapshot at the start of a frame; the snapshot it is
+// using is never modified. Retired snapshots are freed by the mapper, never by the tracker,
+// so the tracker does not free memory on the heap either.
+//
+// Ownership: MatchIndex is shared by the two stages (make_slam_stages). Threads: publish()
+// and collect() from the mapper thread; acquire() from the tracker thread.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <opencv2/flann.hpp>
+#include <unordered_map>
+#include <vector>
+
+#include "core/geometry.h"
+
+namespace rdslam {
+
+struct MapSnapshot {
+  uint64_t version = 0;
+  uint32_t epoch = 0;  // map epoch: a reset starts a new map
+  bool binary = true;
+  // Points (valid reference features only), row-aligned.
+  std::vector<int64_t> ids;
+  std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> p_world;
+  std::vector<Eigen::Vector3f, Eigen::aligned_allocator<Eigen::Vector3f>> normal;
+  std::vector<float> min_dist, max_dist;
+  cv::Mat desc;  // one row per point
+  // Observing keyframes of each point (CSR): obs_kf[obs_start[i] .. obs_start[i+1]) are
+  // indices into kf_ids.
+  std::vector<int> obs_start, obs_kf;
+  // Keyframes.
+  std::vector<int> kf_ids;
+  std::vector<Pose, Eigen::aligned_allocator<Pose>> kf_pose;  // T_cam_world
+  std::vector<int> kf_points;                                 // points each keyframe observes
+  std::unordered_map<int64_t, int> row_of;                    // point id -> row
+  // SIFT mode: the paper's KD-tree over `desc` (FLANN, 4 randomised trees).
+  std::unique_ptr<cv::flann::Index> kdtree;
+
+  int rows() const { return static_cast<int>(ids.size()); }
+  int find(int64_t id) const {
+    auto it = row_of.find(id);
+    return it == row_of.end() ? -1 : it->second;
+  }
+};
+
+class MatchIndex {
+ public:
+  // Mapper: make `snap` the active index (one atomic pointer swap).
+  void publish(std::shared_ptr<const MapSnapshot> snap);
+  // Tracker: the active snapshot (nullptr before the first publish). Holds a reference.
+  std::shared_ptr<const MapSnapshot> acquire() const;
+  uint64_t version() const { return version_.load(std::memory_order_acquire); }
+  // Mapper: free retired snapshots that the tracker no longer holds.
+  void collect();
+
+ private:
+  std::shared_ptr<const MapSnapshot> active_;
+  std::atomic<uint64_t> version_{0};
+  // Guards active_ only for the duration of a pointer copy (std::atomic<shared_ptr> is C++20).
+  mutable std::mutex swap_mutex_;
+  std::vector<std::shared_ptr<const MapSnapshot>> retired_;  // mapper thread only
+};
+
+}  // namespace rdslam

@@ -1,0 +1,110 @@
+#include "core/pose_estimation.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+namespace rdslam {
+
+namespace {
+constexpr double kChi2 = 5.991;  // chi-square 2 DoF, 95%
+}
+
+PoseRefineStats refine_pose(const Intrinsics& K, const Eigen::Vector3d* p_world,
+                            const Eigen::Vector2d* obs, const float* sigma_px, int n, Pose& T,
+                            uint8_t* inlier, int rounds, int iterations) {
+  PoseRefineStats st;
+  if (n <= 0) return st;
+  for (int i = 0; i < n; ++i) inlier[i] = 1;
+  const double huber = std::sqrt(kChi2);
+  for (int round = 0; round < rounds; ++round) {
+    const bool robust = round < rounds - 1;
+    for (int it = 0; it < iterations; ++it) {
+      Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+      int used = 0;
+      for (int i = 0; i < n; ++i) {
+        if (!inlier[i]) continue;
+        const Eigen::Vector3d pc = T * p_world[i];
+        if (pc.z() <= 1e-6) continue;
+        const double iz = 1.0 / pc.z();
+        const Eigen::Vector2d e = K.project(pc) - obs[i];
+        const double inv_s = 1.0 / sigma_px[i];
+        const double chi = e.squaredNorm() * inv_s * inv_s;
+        double w = inv_s * inv_s;
+        if (robust && chi > kChi2) w *= huber / std::sqrt(chi);
+        Eigen::Matrix<double, 2, 3> Jp;
+        Jp << K.fx * iz, 0, -K.fx * pc.x() * iz * iz, 0, K.fy * iz, -K.fy * pc.y() * iz * iz;
+        Eigen::Matrix<double, 2, 6> J;
+        J.leftCols<3>() = -Jp * skew(pc);  // rotation (left perturbation)
+        J.rightCols<3>() = Jp;             // translation
+        H.noalias() += w * J.transpose() * J;
+        g.noalias() += w * J.transpose() * e;
+        ++used;
+      }
+      if (used < 4) break;
+      const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-g);
+      if (!dx.allFinite()) break;
+      const Eigen::Matrix3d dR = exp_so3(dx.head<3>());
+      T.R = dR * T.R;
+      T.t = dR * T.t + dx.tail<3>();
+      if (dx.squaredNorm() < 1e-12) break;
+    }
+    // Re-classify every correspondence, including earlier outliers (they may come back).
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d pc = T * p_world[i];
+      if (pc.z() <= 1e-6) {
+        inlier[i] = 0;
+        continue;
+      }
+      const Eigen::Vector2d e = K.project(pc) - obs[i];
+      const double chi = e.squaredNorm() / (double(sigma_px[i]) * sigma_px[i]);
+      inlier[i] = chi <= kChi2 ? 1 : 0;
+    }
+  }
+  // Orthonormalise against drift from the repeated left updates.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(T.R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  T.R = svd.matrixU() * svd.matrixV().transpose();
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!inlier[i]) continue;
+    ++st.inliers;
+    sum += (K.project(T * p_world[i]) - obs[i]).squaredNorm();
+  }
+  st.rms_px = st.inliers ? std::sqrt(sum / st.inliers) : 0.0;
+  return st;
+}
+
+PoseEstimator::PoseEstimator(const Intrinsics& K, int max_correspondences, uint64_t seed)
+    : K_(K), max_n_(max_correspondences), seed_(seed) {}
+
+int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs,
+                            const float* sigma_px, int n, Pose& T, uint8_t* inlier) {
+  if (n < 6) return 0;
+  n = std::min(n, max_n_);
+  // Adapter: OpenCV P3P-family RANSAC until core/parsac.h lands (issue 6).
+  std::vector<cv::Point3f> obj(n);
+  std::vector<cv::Point2f> img(n);
+  for (int i = 0; i < n; ++i) {
+    obj[i] = cv::Point3f(float(p_world[i].x()), float(p_world[i].y()), float(p_world[i].z()));
+    img[i] = cv::Point2f(float(obs[i].x()), float(obs[i].y()));
+  }
+  const cv::Matx33d Kcv(K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1);
+  cv::Mat rvec, tvec;
+  std::vector<int> idx;
+  cv::theRNG().state = seed_;
+  const bool ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, 300, 4.0,
+                                     0.99, idx, cv::SOLVEPNP_AP3P);
+  if (!ok || static_cast<int>(idx.size()) < 6) return 0;
+  cv::Mat Rcv;
+  cv::Rodrigues(rvec, Rcv);
+  Eigen::Matrix3d R;
+  cv::cv2eigen(Rcv, R);
+  T.R = R;
+  T.t = Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+  const PoseRefineStats st = refine_pose(K_, p_world, obs, sigma_px, n, T, inlier);
+  return st.inliers;
+}
+
+}  // namespace rdslam

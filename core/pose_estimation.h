@@ -1,0 +1,49 @@
+// Camera pose from 2D-3D correspondences for the tracker: the paper's eq. (1),
+//   min_{R,t} sum_i || x_i - pi(K (R X_i + t)) ||^2,
+// solved by Gauss-Newton on SE(3) with a Huber kernel and chi-square outlier classification
+// (several rounds, re-classifying each round), plus a minimal-sample robust estimator for
+// when no pose prior exists (relocalization).
+//
+// The robust estimator is an adapter: it uses OpenCV's P3P RANSAC until core/parsac.h (the
+// paper's PARSAC, another module) is available; switching is one line in the .cpp.
+//
+// Ownership: PoseEstimator owns its scratch buffers, sized at construction.
+// Threads: one instance per thread (the tracker owns one).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/geometry.h"
+
+namespace rdslam {
+
+struct PoseRefineStats {
+  int inliers = 0;
+  double rms_px = 0.0;  // over inliers
+};
+
+// Eq. (1) with robust weights. `sigma_px[i]` is the measurement standard deviation of
+// observation i (pixels, grows with the pyramid level). Observations whose squared normalised
+// error exceeds 5.991 (chi-square 2 DoF, 95%) are classified outliers in `inlier[i]` (0/1);
+// outliers are excluded from the next round. Does not allocate.
+PoseRefineStats refine_pose(const Intrinsics& K, const Eigen::Vector3d* p_world,
+                            const Eigen::Vector2d* obs, const float* sigma_px, int n,
+                            Pose& T_cam_world, uint8_t* inlier, int rounds = 4,
+                            int iterations = 10);
+
+class PoseEstimator {
+ public:
+  PoseEstimator(const Intrinsics& K, int max_correspondences, uint64_t seed = 1);
+  // Robust pose without prior (minimal samples + refinement). Returns the inlier count
+  // (0 on failure). Relocalization only: the OpenCV fallback allocates.
+  int estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs, const float* sigma_px,
+               int n, Pose& T_cam_world, uint8_t* inlier);
+
+ private:
+  Intrinsics K_;
+  int max_n_;
+  uint64_t seed_;
+};
+
+}  // namespace rdslam

@@ -1,0 +1,85 @@
+#include "core/slam.h"
+
+#include <chrono>
+
+namespace rdslam {
+
+namespace {
+
+class TrackerStageImpl : public TrackerStage {
+ public:
+  TrackerStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
+      : tracker_(p.tracker, p.features, p.mapper.ba, cam, std::move(link), p.mapper.max_points) {}
+  TrackResult track(const Frame& frame) override { return tracker_.track(frame); }
+
+ private:
+  Tracker tracker_;
+};
+
+class MapperStageImpl : public MapperStage {
+ public:
+  MapperStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
+      : mapper_(p.mapper, p.features, cam, std::move(link)) {}
+  bool step(int timeout_ms) override { return mapper_.step(timeout_ms); }
+
+ private:
+  Mapper mapper_;
+};
+
+// Two slots: one candidate being mapped, one waiting. A third would only queue stale frames.
+constexpr uint32_t kCandidateSlots = 2;
+
+}  // namespace
+
+std::string SlamParams::validate() const {
+  std::string e = features.validate();
+  if (!e.empty()) return e;
+  if (tracker.reloc_min_inliers < tracker.min_inliers) {
+    return "tracker.reloc_min_inliers: must be >= tracker.min_inliers";
+  }
+  return {};
+}
+
+SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera) {
+  auto link = std::make_shared<SlamLink>(kCandidateSlots);
+  SlamStages s;
+  s.tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
+  s.mapper = std::make_unique<MapperStageImpl>(params, camera, link);
+  return s;
+}
+
+OfflineRun run_offline(FrameSource& source, const SlamParams& params, const CameraModel& camera,
+                       int max_frames, const std::function<void(const OfflineFrame&)>& on_frame) {
+  auto link = std::make_shared<SlamLink>(kCandidateSlots);
+  Tracker tracker(params.tracker, params.features, params.mapper.ba, camera, link,
+                  params.mapper.max_points);
+  Mapper mapper(params.mapper, params.features, camera, link);
+  OfflineRun run;
+  Frame frame;
+  using Clock = std::chrono::steady_clock;
+  for (int n = 0; max_frames <= 0 || n < max_frames; ++n) {
+    const SourceStatus st = source.read(frame, 1000);
+    if (st == SourceStatus::kEndOfStream) break;
+    if (st != SourceStatus::kOk) continue;
+    OfflineFrame of;
+    of.stamp_ns = frame.stamp_ns;
+    of.seq = frame.seq;
+    const auto t0 = Clock::now();
+    of.result = tracker.track(frame);
+    const auto t1 = Clock::now();
+    while (mapper.step(0)) {
+    }
+    const auto t2 = Clock::now();
+    of.track_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    of.mapper_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+    run.frames.push_back(of);
+    if (on_frame) on_frame(run.frames.back());
+  }
+  run.mapper = mapper.stats();
+  run.tracker = tracker.stats();
+  run.final_keyframes = static_cast<int>(mapper.map().keyframes.size());
+  run.final_points = static_cast<int>(mapper.map().points.size());
+  return run;
+}
+
+}  // namespace rdslam

@@ -1,0 +1,65 @@
+// The SLAM system as two pipeline stages (core/stages.h) plus a deterministic single-thread
+// driver.
+//
+// make_slam_stages() builds the Tracker (tracker thread) and the Mapper (mapper thread); they
+// share only a SlamLink: an SPSC ring of preallocated keyframe candidates (tracker -> mapper)
+// and the double-buffered matching index (mapper -> tracker, one atomic pointer swap). The
+// mapper therefore never blocks the tracker for longer than that swap.
+//
+// run_offline() alternates tracker and mapper in the calling thread: after each frame the
+// mapper processes every pending candidate. Results are deterministic (the callgrind mode of
+// issue 10 and the accuracy tests use it).
+//
+// Ownership: SlamStages owns both stages. Threads: see each stage.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "core/features.h"
+#include "core/mapper.h"
+#include "core/stages.h"
+#include "core/tracker.h"
+#include "drivers/frame_source.h"
+
+namespace rdslam {
+
+struct SlamParams {
+  FeatureParams features;
+  TrackerParams tracker;
+  MapperParams mapper;
+  // Cross-section checks; empty when valid.
+  std::string validate() const;
+};
+
+struct SlamStages {
+  std::unique_ptr<TrackerStage> tracker;
+  std::unique_ptr<MapperStage> mapper;
+};
+
+SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera);
+
+struct OfflineFrame {
+  int64_t stamp_ns = 0;
+  uint64_t seq = 0;
+  TrackResult result;
+  double track_ms = 0.0;   // tracker time for this frame
+  double mapper_ms = 0.0;  // mapper time spent after this frame
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+struct OfflineRun {
+  std::vector<OfflineFrame, Eigen::aligned_allocator<OfflineFrame>> frames;
+  MapperStats mapper;
+  TrackerStats tracker;
+  int final_keyframes = 0, final_points = 0;
+};
+
+// Reads `source` to the end (or `max_frames`, 0 = all) through tracker and mapper in this
+// thread. `on_frame` (optional) sees every result as it is produced.
+OfflineRun run_offline(FrameSource& source, const SlamParams& params, const CameraModel& camera,
+                       int max_frames = 0,
+                       const std::function<void(const OfflineFrame&)>& on_frame = nullptr);
+
+}  // namespace rdslam

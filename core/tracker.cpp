@@ -1,0 +1,461 @@
+#include "core/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "core/log.h"
+#include "core/prefix_visitor.h"
+#include "core/relocalizer.h"
+
+namespace rdslam {
+
+void TrackerParams::visit(ParamVisitor& v) {
+  v.field("min_inliers", min_inliers, 6, 10000, "inliers needed to publish TRACKING");
+  v.field("reloc_min_inliers", reloc_min_inliers, 6, 10000, "inliers needed to relocalize");
+  v.field("motion_search_px", motion_search_px, 1.0, 500.0,
+          "motion-model search radius (pixels at level 0)");
+  v.field("local_search_px", local_search_px, 0.5, 100.0, "map-point projection search radius");
+  v.field("m1", m1, 1, 100000, "paper Sec. 4: fewer common features -> potential keyframe");
+  v.field("keyframe_overlap_ratio", keyframe_overlap_ratio, 0.0, 1.0,
+          "or fewer than this fraction of the reference keyframe's points");
+  v.field("max_keyframe_interval", max_keyframe_interval, 1, 100000,
+          "frames after which a keyframe is proposed anyway");
+  v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
+          "lost this long with <= 2 keyframes: re-initialize");
+  PrefixVisitor init_v(v, "init_");
+  init.visit(init_v);
+}
+
+void Tracker::FrameState::reset_matches(int n) {
+  std::fill(pid.begin(), pid.begin() + n, int64_t{-1});
+  std::fill(row.begin(), row.begin() + n, -1);
+  std::fill(best_dist.begin(), best_dist.begin() + n, 1e30f);
+}
+
+Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
+                 const BundleAdjustmentParams& ba, const CameraModel& camera,
+                 std::shared_ptr<SlamLink> link, int max_points)
+    : params_(params),
+      fparams_(features),
+      camera_(camera),
+      K_{camera.fx, camera.fy, camera.cx, camera.cy},
+      link_(std::move(link)),
+      extractor_(features, camera),
+      initializer_(params.init, features, K_, ba),
+      estimator_(K_, features.max_features + 64) {
+  const size_t cap = static_cast<size_t>(features.max_features) + 64;
+  for (FrameState* s : {&cur_, &last_}) {
+    s->pid.assign(cap, -1);
+    s->p.assign(cap, Eigen::Vector3d::Zero());
+    s->row.assign(cap, -1);
+    s->best_dist.assign(cap, 1e30f);
+  }
+  cand_.resize(2048);
+  corr_p_.resize(cap);
+  corr_x_.resize(cap);
+  corr_s_.resize(cap);
+  corr_feat_.resize(cap);
+  corr_inl_.resize(cap);
+  reloc_pairs_.resize(2 * cap);
+  row_stamp_.assign(static_cast<size_t>(max_points) + 4096, -1);
+  kf_votes_.reserve(4096);
+  level_scale_.resize(std::max(1, features.levels));
+  for (size_t l = 0; l < level_scale_.size(); ++l) {
+    level_scale_[l] = static_cast<float>(std::pow(features.scale_factor, double(l)));
+  }
+  // Warm up the frame buffers so the first frames do not allocate inside track().
+  gray_.create(camera.height, camera.width, CV_8UC1);
+}
+
+void Tracker::refresh_snapshot() {
+  const uint64_t v = link_->index.version();
+  if (v == snap_version_) return;
+  snap_version_ = v;
+  std::shared_ptr<const MapSnapshot> s = link_->index.acquire();
+  if (!s || s->epoch != epoch_) return;
+  snap_ = std::move(s);  // the previous snapshot is freed by the mapper (MatchIndex::collect)
+  if (static_cast<int>(row_stamp_.size()) < snap_->rows()) {
+    row_stamp_.resize(static_cast<size_t>(snap_->rows()) * 2, -1);  // map above its cap
+  }
+  // Bundle adjustment moved points: refresh the previous frame's positions and rows.
+  for (int i = 0; i < last_.f.count; ++i) {
+    if (last_.pid[i] < 0) continue;
+    const int r = snap_->find(last_.pid[i]);
+    last_.row[i] = r;
+    if (r >= 0) last_.p[i] = snap_->p_world[r];
+  }
+}
+
+int Tracker::match_motion(const Pose& T, double radius) {
+  const bool bin = cur_.f.binary;
+  const double max_d = bin ? fparams_.orb_max_distance : fparams_.sift_max_distance;
+  const double ratio = bin ? 0.9 : fparams_.sift_ratio;
+  for (int i = 0; i < last_.f.count; ++i) {
+    if (last_.pid[i] < 0) continue;
+    const Eigen::Vector3d pc = T * last_.p[i];
+    if (pc.z() <= 1e-6) continue;
+    const Eigen::Vector2d uv = K_.project(pc);
+    if (uv.x() < 0 || uv.y() < 0 || uv.x() >= cur_.f.width || uv.y() >= cur_.f.height) continue;
+    const int lvl = last_.f.level[i];
+    const int n = cur_.f.radius_search(
+        float(uv.x()), float(uv.y()), float(radius * last_.f.scale[i]), bin ? lvl - 1 : -1,
+        bin ? lvl + 1 : 1 << 20, cand_.data(), static_cast<int>(cand_.size()));
+    double b1 = 1e30, b2 = 1e30;
+    int bj = -1;
+    for (int k = 0; k < n; ++k) {
+      const int j = cand_[k];
+      const double d = descriptor_distance(last_.f.desc_ptr(i), cur_.f.desc_ptr(j), bin);
+      if (d < b1) {
+        b2 = b1;
+        b1 = d;
+        bj = j;
+      } else if (d < b2) {
+        b2 = d;
+      }
+    }
+    if (bj < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    if (b1 >= cur_.best_dist[bj]) continue;
+    cur_.pid[bj] = last_.pid[i];
+    cur_.p[bj] = last_.p[i];
+    cur_.row[bj] = last_.row[i];
+    cur_.best_dist[bj] = static_cast<float>(b1);
+  }
+  int m = 0;
+  for (int j = 0; j < cur_.f.count; ++j) m += cur_.pid[j] >= 0;
+  return m;
+}
+
+int Tracker::match_local_map(const Pose& T, double radius) {
+  if (!snap_) return 0;
+  const MapSnapshot& s = *snap_;
+  const bool bin = cur_.f.binary;
+  const double max_d = bin ? fparams_.orb_max_distance : fparams_.sift_max_distance;
+  const double ratio = bin ? fparams_.match_ratio : fparams_.sift_ratio;
+  const Eigen::Vector3d c = T.centre();
+  const double log_sf = std::log(std::max(1.0001, fparams_.scale_factor));
+  const int L = static_cast<int>(level_scale_.size());
+  for (int j = 0; j < cur_.f.count; ++j) {
+    if (cur_.row[j] >= 0) row_stamp_[cur_.row[j]] = frame_no_;
+  }
+  int added = 0;
+  for (int r = 0; r < s.rows(); ++r) {
+    if (row_stamp_[r] == frame_no_) continue;
+    const Eigen::Vector3d& p = s.p_world[r];
+    const Eigen::Vector3d pc = T * p;
+    if (pc.z() <= 1e-6) continue;
+    const Eigen::Vector2d uv = K_.project(pc);
+    if (uv.x() < 0 || uv.y() < 0 || uv.x() >= cur_.f.width || uv.y() >= cur_.f.height) continue;
+    const Eigen::Vector3d v = c - p;
+    const double dist = v.norm();
+    if (bin && (dist < s.min_dist[r] || dist > s.max_dist[r])) continue;
+    const double view_cos = s.normal[r].cast<double>().dot(v) / std::max(1e-12, dist);
+    if (view_cos < 0.5) continue;
+    int lvl = 0, lo = -1, hi = 1 << 20;
+    if (bin) {
+      lvl = static_cast<int>(std::ceil(std::log(s.max_dist[r] / 1.2 / dist) / log_sf));
+      lvl = std::max(0, std::min(L - 1, lvl));
+      lo = lvl - 1;
+      hi = lvl + 1;
+    }
+    const double rad = radius * (view_cos > 0.998 ? 1.0 : 1.5) * level_scale_[lvl];
+    const int n = cur_.f.radius_search(float(uv.x()), float(uv.y()), float(rad), lo, hi,
+                                       cand_.data(), static_cast<int>(cand_.size()));
+    double b1 = 1e30, b2 = 1e30;
+    int bj = -1;
+    const uint8_t* d_r = s.desc.ptr<uint8_t>(r);
+    for (int k = 0; k < n; ++k) {
+      const int j = cand_[k];
+      if (cur_.pid[j] >= 0) continue;
+      const double d = descriptor_distance(d_r, cur_.f.desc_ptr(j), bin);
+      if (d < b1) {
+        b2 = b1;
+        b1 = d;
+        bj = j;
+      } else if (d < b2) {
+        b2 = d;
+      }
+    }
+    if (bj < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    cur_.pid[bj] = s.ids[r];
+    cur_.p[bj] = p;
+    cur_.row[bj] = r;
+    cur_.best_dist[bj] = static_cast<float>(b1);
+    row_stamp_[r] = frame_no_;
+    ++added;
+  }
+  return added;
+}
+
+int Tracker::optimise(Pose& T) {
+  int n = 0;
+  for (int j = 0; j < cur_.f.count; ++j) {
+    if (cur_.pid[j] < 0) continue;
+    corr_p_[n] = cur_.p[j];
+    corr_x_[n] = Eigen::Vector2d(cur_.f.un[j].x, cur_.f.un[j].y);
+    corr_s_[n] = cur_.f.scale[j];
+    corr_feat_[n] = j;
+    ++n;
+  }
+  if (n < 6) return 0;
+  const PoseRefineStats st =
+      refine_pose(K_, corr_p_.data(), corr_x_.data(), corr_s_.data(), n, T, corr_inl_.data());
+  // Outliers do not propagate to the next frame.
+  for (int k = 0; k < n; ++k) {
+    if (corr_inl_[k]) continue;
+    const int j = corr_feat_[k];
+    cur_.pid[j] = -1;
+    cur_.row[j] = -1;
+    cur_.best_dist[j] = 1e30f;
+  }
+  return st.inliers;
+}
+
+bool Tracker::relocalize() {
+  if (!snap_ || snap_->rows() < params_.reloc_min_inliers) return false;
+  const int n = global_match(cur_.f, *snap_, fparams_, reloc_pairs_.data(),
+                             static_cast<int>(reloc_pairs_.size() / 2));
+  if (n < 10) return false;
+  // reloc_pairs_ holds (feature, snapshot row) pairs.
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    const int j = reloc_pairs_[2 * k], r = reloc_pairs_[2 * k + 1];
+    corr_p_[m] = snap_->p_world[r];
+    corr_x_[m] = Eigen::Vector2d(cur_.f.un[j].x, cur_.f.un[j].y);
+    corr_s_[m] = cur_.f.scale[j];
+    ++m;
+  }
+  Pose T;
+  const int inl =
+      estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), m, T, corr_inl_.data());
+  if (inl < 10) return false;
+  cur_.reset_matches(cur_.f.count);
+  for (int k = 0; k < m; ++k) {
+    if (!corr_inl_[k]) continue;
+    const int j = reloc_pairs_[2 * k], r = reloc_pairs_[2 * k + 1];
+    cur_.pid[j] = snap_->ids[r];
+    cur_.p[j] = snap_->p_world[r];
+    cur_.row[j] = r;
+    cur_.best_dist[j] = 0.f;
+  }
+  ++frame_no_;  // fresh row stamps for the projection search
+  match_local_map(T, params_.local_search_px * 2.0);
+  int ok = optimise(T);
+  match_local_map(T, params_.local_search_px);
+  ok = optimise(T);
+  if (ok < params_.reloc_min_inliers) return false;
+  cur_.T = T;
+  stats_.inliers = ok;
+  return true;
+}
+
+void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
+  KeyframeCandidate* slot = link_->candidates.back();
+  if (!slot) return;  // mapper still busy with an old map: try again next frame
+  slot->kind = KeyframeCandidate::Kind::kInit;
+  slot->epoch = epoch_;
+  slot->stamp_ns = frame.stamp_ns;
+  slot->T_cam_world = init.T1;
+  slot->features.copy_from(cur_.f);
+  slot->point_of.assign(cur_.f.count, -1);
+  slot->features0.copy_from(*init.reference);
+  slot->stamp0_ns = init.reference_stamp_ns;
+  ref_image_.copyTo(slot->image0);
+  frame.image.copyTo(slot->image);
+  slot->init_points = init.points;
+  for (size_t k = 0; k < init.points.size(); ++k) slot->point_of[init.points[k].feat1] = int64_t(k);
+  link_->candidates.commit();
+  link_->bell.ring();
+
+  cur_.reset_matches(cur_.f.count);
+  for (size_t k = 0; k < init.points.size(); ++k) {
+    const int j = init.points[k].feat1;
+    cur_.pid[j] = static_cast<int64_t>(k);
+    cur_.p[j] = init.points[k].p_world;
+    cur_.row[j] = -1;
+    cur_.best_dist[j] = 0.f;
+  }
+  cur_.T = init.T1;
+  // Constant velocity from the initial motion spread over the frames it took.
+  const int age = std::max(1, initializer_.reference_age());
+  const Eigen::AngleAxisd aa(init.T1.R);
+  velocity_.R = Eigen::AngleAxisd(aa.angle() / age, aa.axis()).toRotationMatrix();
+  velocity_.t = init.T1.t / age;
+  state_ = TrackingState::kTracking;
+  frames_since_kf_ = 0;
+  stats_.inliers = static_cast<int>(init.points.size());
+  RDSLAM_LOG_INFO("tracker: initialized with %zu points (%s, median parallax %.2f deg)",
+                  init.points.size(), init.homography ? "homography" : "essential",
+                  init.median_parallax_deg);
+}
+
+void Tracker::reset_map() {
+  KeyframeCandidate* slot = link_->candidates.back();
+  if (!slot) return;
+  ++epoch_;
+  slot->kind = KeyframeCandidate::Kind::kReset;
+  slot->epoch = epoch_;
+  link_->candidates.commit();
+  link_->bell.ring();
+  snap_.reset();
+  initializer_.reset();
+  have_last_ = false;
+  state_ = TrackingState::kInitializing;
+  lost_frames_ = 0;
+  RDSLAM_LOG_WARN("tracker: lost with a map of <= 2 keyframes: re-initializing");
+}
+
+void Tracker::maybe_send_keyframe(const Frame& frame) {
+  ++frames_since_kf_;
+  if (!snap_ || snap_->kf_ids.empty()) return;
+  const MapSnapshot& s = *snap_;
+  kf_votes_.assign(s.kf_ids.size(), 0);  // capacity reserved: no allocation below the cap
+  for (int j = 0; j < cur_.f.count; ++j) {
+    const int r = cur_.row[j];
+    if (cur_.pid[j] < 0 || r < 0) continue;
+    for (int k = s.obs_start[r]; k < s.obs_start[r + 1]; ++k) ++kf_votes_[s.obs_kf[k]];
+  }
+  int ref = 0;
+  for (size_t k = 1; k < kf_votes_.size(); ++k) {
+    if (kf_votes_[k] > kf_votes_[ref]) ref = static_cast<int>(k);
+  }
+  ref_kf_shared_ = kf_votes_[ref];
+  ref_kf_points_ = s.kf_points[ref];
+  const bool few_common = ref_kf_shared_ < params_.m1 ||
+                          ref_kf_shared_ < params_.keyframe_overlap_ratio * ref_kf_points_;
+  if (!few_common && frames_since_kf_ < params_.max_keyframe_interval) return;
+  KeyframeCandidate* slot = link_->candidates.back();
+  if (!slot) return;  // the mapper has not taken the previous candidate yet
+  slot->kind = KeyframeCandidate::Kind::kKeyframe;
+  slot->epoch = epoch_;
+  slot->stamp_ns = frame.stamp_ns;
+  slot->T_cam_world = cur_.T;
+  slot->features.copy_from(cur_.f);
+  slot->point_of.resize(cur_.f.count);
+  std::copy(cur_.pid.begin(), cur_.pid.begin() + cur_.f.count, slot->point_of.begin());
+  frame.image.copyTo(slot->image);
+  link_->candidates.commit();
+  link_->bell.ring();
+  frames_since_kf_ = 0;
+  ++stats_.candidates_sent;
+}
+
+void Tracker::fill_result(TrackResult& r) const {
+  r.state = state_;
+  const Pose& T = (state_ == TrackingState::kLost || !have_last_) ? last_.T : cur_.T;
+  const Pose Twc = T.inverse();
+  r.p_world_cam = Twc.t;
+  r.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
+  r.inliers = stats_.inliers;
+  r.quality = cur_.f.count > 0 ? double(stats_.inliers) / cur_.f.count : 0.0;
+  r.covariance.fill(-1.0);
+  r.map_points = link_->points.load(std::memory_order_relaxed);
+  r.keyframes = link_->keyframes.load(std::memory_order_relaxed);
+  r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);
+}
+
+TrackResult Tracker::track(const Frame& frame) {
+  ++frame_no_;
+  TrackResult result;
+  const cv::Mat* img = &frame.image;
+  if (frame.image.type() == CV_8UC3) {
+    cv::cvtColor(frame.image, gray_, cv::COLOR_BGR2GRAY);
+    img = &gray_;
+  }
+  extractor_.extract(*img, cur_.f);
+  cur_.reset_matches(cur_.f.count);
+  refresh_snapshot();
+  stats_.matches_motion = stats_.matches_local = 0;
+
+  if (state_ == TrackingState::kInitializing) {
+    stats_.inliers = 0;
+    const InitStatus s = initializer_.add_frame(cur_.f, frame.stamp_ns, init_result_);
+    stats_.last_init = s;
+    if (initializer_.reference_stamp() == frame.stamp_ns && s != InitStatus::kOk) {
+      frame.image.copyTo(ref_image_);
+    }
+    if (s == InitStatus::kOk) start_from_init(init_result_, frame);
+    if (state_ == TrackingState::kTracking) {
+      fill_result(result);
+      result.state = TrackingState::kTracking;
+      const Pose Twc = cur_.T.inverse();
+      result.p_world_cam = Twc.t;
+      result.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
+      std::swap(cur_, last_);
+      have_last_ = true;
+      return result;
+    }
+    fill_result(result);
+    result.state = TrackingState::kInitializing;
+    return result;
+  }
+
+  bool ok = false;
+  if (state_ == TrackingState::kTracking || state_ == TrackingState::kRelocalized) {
+    const Pose Tpred = velocity_ * last_.T;
+    Pose T = Tpred;
+    int inl = 0;
+    int nm = have_last_ ? match_motion(Tpred, params_.motion_search_px) : 0;
+    if (nm >= 15) inl = optimise(T);
+    if (inl < 15 && have_last_) {
+      // Sudden motion change: widen the window around the prediction.
+      cur_.reset_matches(cur_.f.count);
+      T = Tpred;
+      nm = match_motion(Tpred, 2.0 * params_.motion_search_px);
+      inl = nm >= 15 ? optimise(T) : 0;
+    }
+    if (inl < 15 && snap_) {
+      cur_.reset_matches(cur_.f.count);
+      T = Tpred;
+      match_local_map(Tpred, 4.0 * params_.local_search_px);
+      inl = optimise(T);
+    }
+    stats_.matches_motion = nm;
+    if (inl >= 10) {
+      ++frame_no_;  // new row stamps: motion matches are re-marked inside
+      stats_.matches_local = match_local_map(T, params_.local_search_px);
+      inl = optimise(T);
+    }
+    stats_.inliers = inl;
+    if (inl >= params_.min_inliers) {
+      ok = true;
+      cur_.T = T;
+      velocity_ = T * last_.T.inverse();
+      state_ = TrackingState::kTracking;
+      lost_frames_ = 0;
+    } else {
+      state_ = TrackingState::kLost;
+      have_last_ = false;
+      lost_frames_ = 1;
+    }
+  } else if (state_ == TrackingState::kLost) {
+    if (relocalize()) {
+      ok = true;
+      state_ = TrackingState::kRelocalized;
+      velocity_ = Pose();
+      lost_frames_ = 0;
+    } else {
+      ++lost_frames_;
+      if (lost_frames_ > params_.reset_after_lost_frames && (!snap_ || snap_->kf_ids.size() <= 2)) {
+        reset_map();
+      }
+    }
+  }
+  if (ok) {
+    maybe_send_keyframe(frame);
+    fill_result(result);
+    result.state = state_;
+    const Pose Twc = cur_.T.inverse();
+    result.p_world_cam = Twc.t;
+    result.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
+    std::swap(cur_, last_);
+    have_last_ = true;
+  } else {
+    fill_result(result);
+    result.state = state_;
+    result.inliers = stats_.inliers;
+  }
+  return result;
+}
+
+}  // namespace rdslam

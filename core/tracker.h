@@ -1,0 +1,134 @@
+// The tracker (Sec. 3): per frame, features are extracted and matched to the reference
+// features (3D points), the camera pose is estimated robustly and refined by eq. (1), and the
+// frame is proposed as a keyframe by the paper's rules (Sec. 4).
+//
+// State machine (published with every pose):
+//   INITIALIZING --two-view init--> TRACKING --too few inliers--> LOST
+//   LOST --relocalization against the map--> RELOCALIZED (one frame) --> TRACKING
+//   LOST for `reset_after_lost_frames` with a map of at most 2 keyframes --> INITIALIZING
+// A pose is published as TRACKING/RELOCALIZED only when at least `min_inliers` 2D-3D matches
+// support it after refinement.
+//
+// Matching (fast mode): projection-guided. The previous frame's tracked points are projected
+// with a constant-velocity prediction and matched in a radius (descriptor distance + ratio);
+// then every visible point of the active matching index (core/match_index.h) is projected
+// with the refined pose and matched in a small radius at its predicted pyramid level. SIFT
+// mode uses the same projection-guided search with L2 distances and the paper's ratio 0.6,
+// and the index's FLANN KD-tree for relocalization (global matching, Sec. 3).
+//
+// Keyframe rule (Sec. 4): a frame whose pose was found is a potential keyframe when it shares
+// fewer than m1 tracked points with its reference keyframe (the keyframe sharing most), or
+// fewer than `keyframe_overlap_ratio` of the points that keyframe tracks (ORB features are
+// denser than SIFT: an absolute m1 = 80 alone reacts too late), or after
+// `max_keyframe_interval` frames. The mapper then accepts it only if it contributes more than
+// m2 new points (condition 3).
+//
+// Ownership: Tracker owns all its buffers (sized at construction from the params) and holds
+// the active MapSnapshot. Threads: tracker thread only. No heap allocation per frame after
+// warm-up, except while INITIALIZING (OpenCV model fitting) and relocalizing.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/features.h"
+#include "core/initializer.h"
+#include "core/keyframe.h"
+#include "core/params.h"
+#include "core/pose_estimation.h"
+#include "core/stages.h"
+#include "drivers/frame_source.h"
+
+namespace rdslam {
+
+struct TrackerParams {
+  int min_inliers = 30;                 // fewer: LOST
+  int reloc_min_inliers = 40;           // relocalization accepted with at least this many
+  double motion_search_px = 15.0;       // radius of the motion-model search (level-0 pixels)
+  double local_search_px = 4.0;         // radius of the map-point projection search
+  int m1 = 80;                          // paper Sec. 4: fewer common features -> potential keyframe
+  double keyframe_overlap_ratio = 0.8;  // or fewer than this fraction of the reference's points
+  int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
+  int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
+  InitializerParams init;
+
+  void visit(ParamVisitor& v);
+};
+
+struct TrackerStats {
+  int matches_motion = 0, matches_local = 0, inliers = 0;
+  int candidates_sent = 0;
+  InitStatus last_init = InitStatus::kNoReference;
+};
+
+class Tracker {
+ public:
+  Tracker(const TrackerParams& params, const FeatureParams& features,
+          const BundleAdjustmentParams& ba, const CameraModel& camera,
+          std::shared_ptr<SlamLink> link, int max_points);
+  TrackResult track(const Frame& frame);
+  const TrackerStats& stats() const { return stats_; }
+  TrackingState state() const { return state_; }
+
+ private:
+  void refresh_snapshot();
+  int match_motion(const Pose& T, double radius);
+  int match_local_map(const Pose& T, double radius);
+  int optimise(Pose& T);
+  bool relocalize();
+  void maybe_send_keyframe(const Frame& frame);
+  void start_from_init(const InitResult& init, const Frame& frame);
+  void reset_map();
+  void fill_result(TrackResult& r) const;
+
+  TrackerParams params_;
+  FeatureParams fparams_;
+  CameraModel camera_;
+  Intrinsics K_;
+  std::shared_ptr<SlamLink> link_;
+  FeatureExtractor extractor_;
+  Initializer initializer_;
+  PoseEstimator estimator_;
+  InitResult init_result_;
+
+  TrackingState state_ = TrackingState::kInitializing;
+  uint32_t epoch_ = 0;
+  std::shared_ptr<const MapSnapshot> snap_;
+  uint64_t snap_version_ = 0;
+
+  cv::Mat gray_;
+  // Current and previous frame: features and, per feature, the matched point (id, position,
+  // snapshot row).
+  struct FrameState {
+    Features f;
+    std::vector<int64_t> pid;
+    std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> p;
+    std::vector<int> row;
+    std::vector<float> best_dist;
+    Pose T;
+    void reset_matches(int n);
+  };
+  FrameState cur_, last_;
+  bool have_last_ = false;
+  Pose velocity_;
+  int frames_since_kf_ = 0;
+  int lost_frames_ = 0;
+  int64_t frame_no_ = 0;
+
+  // Scratch (preallocated).
+  std::vector<int> cand_;
+  std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> corr_p_;
+  std::vector<Eigen::Vector2d, Eigen::aligned_allocator<Eigen::Vector2d>> corr_x_;
+  std::vector<float> corr_s_;
+  std::vector<int> corr_feat_;
+  std::vector<uint8_t> corr_inl_;
+  std::vector<int> reloc_pairs_;
+  cv::Mat ref_image_;               // image of the initializer's reference frame
+  std::vector<int64_t> row_stamp_;  // per snapshot row: frame_no_ when matched this frame
+  std::vector<int> kf_votes_;
+  std::vector<float> level_scale_;
+  TrackerStats stats_;
+  int ref_kf_shared_ = 0, ref_kf_points_ = 0;
+};
+
+}  // namespace rdslam
