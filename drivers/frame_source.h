@@ -56,6 +56,9 @@ struct SourceCounters {
   uint64_t faults = 0;   // corrupt/undecodable frames skipped
   uint64_t reopens = 0;  // device reopen attempts after unplug
   uint64_t timeouts = 0;
+  // Frames that were due but never delivered because the reader came late (paced replay,
+  // LCM): the newest due frame wins, as with a live camera whose driver overwrites.
+  uint64_t skipped = 0;
 };
 
 class FrameSource {
