@@ -1,0 +1,266 @@
+#include "core/change_detection.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace rdslam {
+
+void ChangeDetectionParams::visit(ParamVisitor& v) {
+  v.field("map_update", map_update, "online 3D point and keyframe updating (Sec. 4)");
+  v.field("occlusion_handling", occlusion_handling, "Algorithm 1 occlusion handling");
+  v.field("closest_keyframes", closest_keyframes, 1, 20, "keyframes checked per frame");
+  v.field("keyframe_view_angle_deg", keyframe_view_angle_deg, 1.0, 180.0,
+          "max optical-axis angle of a checked keyframe");
+  v.field("histogram_threshold", histogram_threshold, 0.0, 10.0,
+          "colour histogram difference that triggers the point check");
+  v.field("tau_n", tau_n, -1.0, 1.0, "view-direction cosine threshold");
+  v.field("window", window, 3, 31, "appearance window size (odd)");
+  v.field("search_d", search_d, 0, 8, "local search radius of eq. (2) in pixels");
+  v.field("tau_c", tau_c, 0.0, 255.0, "appearance threshold, mean abs difference per pixel");
+  v.field("r1", r1, 1.0, 200.0, "radius of phi(x') in pixels");
+  v.field("r2", r2, 1.0, 200.0, "first-keyframe distance threshold in pixels");
+  v.field("keyframe_invalid_ratio", keyframe_invalid_ratio, 0.0, 1.0,
+          "invalid+shared point ratio that invalidates a keyframe");
+  v.field("miss_threshold", miss_threshold, 1, 10000, "missed count that discards a landmark");
+  v.field("moved_threshold", moved_threshold, 1, 10000, "moved count that discards a landmark");
+  v.field("flow_rejection", flow_rejection, "optical-flow rejection while stationary");
+  v.field("flow_threshold_px", flow_threshold_px, 0.0, 100.0, "flow magnitude threshold");
+  v.field("stationary_translation", stationary_translation, 0.0, 10.0,
+          "per-frame translation below which the camera is stationary (map units)");
+  v.field("stationary_rotation_deg", stationary_rotation_deg, 0.0, 45.0,
+          "per-frame rotation below which the camera is stationary");
+}
+
+void compute_color_histogram(const cv::Mat& image, int stride, ColorHistogram& out) {
+  out.bins.fill(0.f);
+  out.valid = false;
+  if (image.empty() || image.depth() != CV_8U || stride < 1) return;
+  const int ch = image.channels();
+  if (ch != 1 && ch != 3) return;
+  float* b = out.bins.data();
+  for (int y = 0; y < image.rows; y += stride) {
+    const uint8_t* row = image.ptr<uint8_t>(y);
+    for (int x = 0; x < image.cols; x += stride) {
+      if (ch == 3) {
+        // BGR storage; histogram order R, G, B.
+        b[0 * 256 + row[3 * x + 2]] += 1.f;
+        b[1 * 256 + row[3 * x + 1]] += 1.f;
+        b[2 * 256 + row[3 * x + 0]] += 1.f;
+      } else {
+        const uint8_t g = row[x];
+        b[g] += 1.f;
+        b[256 + g] += 1.f;
+        b[512 + g] += 1.f;
+      }
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    double ss = 0;
+    for (int i = 0; i < 256; ++i) ss += double(b[c * 256 + i]) * b[c * 256 + i];
+    if (ss <= 0) return;
+    const float inv = float(1.0 / std::sqrt(ss));
+    for (int i = 0; i < 256; ++i) b[c * 256 + i] *= inv;
+  }
+  out.valid = true;
+}
+
+double histogram_difference(const ColorHistogram& a, const ColorHistogram& b) {
+  double total = 0;
+  for (int c = 0; c < 3; ++c) {
+    double ss = 0;
+    for (int i = 0; i < 256; ++i) {
+      const double d = double(a.bins[c * 256 + i]) - b.bins[c * 256 + i];
+      ss += d * d;
+    }
+    total += std::sqrt(ss);
+  }
+  return total;
+}
+
+int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vector3d& cur_centre,
+                             const Eigen::Vector3d* z_axes, const Eigen::Vector3d* centres,
+                             int count, double max_angle_deg, int k, int* out, int out_capacity) {
+  const double min_cos = std::cos(max_angle_deg * M_PI / 180.0);
+  const int cap = std::min(k, out_capacity);
+  if (cap <= 0) return 0;
+  // Keep the `cap` nearest candidates with an insertion list: k is small (5).
+  double best_dist[64];
+  const int limit = std::min(cap, 64);
+  int n = 0;
+  for (int i = 0; i < count; ++i) {
+    if (z_axes[i].dot(cur_z_axis) < min_cos) continue;
+    const double d = (centres[i] - cur_centre).squaredNorm();
+    int pos = n;
+    while (pos > 0 && best_dist[pos - 1] > d) --pos;
+    if (pos >= limit) continue;
+    const int last = std::min(n, limit - 1);
+    for (int j = last; j > pos; --j) {
+      best_dist[j] = best_dist[j - 1];
+      out[j] = out[j - 1];
+    }
+    best_dist[pos] = d;
+    out[pos] = i;
+    if (n < limit) ++n;
+  }
+  return n;
+}
+
+namespace {
+
+inline float sample_bilinear(const cv::Mat& img, double x, double y, int c) {
+  const int x0 = static_cast<int>(std::floor(x));
+  const int y0 = static_cast<int>(std::floor(y));
+  const float ax = float(x - x0), ay = float(y - y0);
+  const int ch = img.channels();
+  const uint8_t* r0 = img.ptr<uint8_t>(y0);
+  const uint8_t* r1 = img.ptr<uint8_t>(y0 + 1);
+  const float v00 = r0[x0 * ch + c], v01 = r0[(x0 + 1) * ch + c];
+  const float v10 = r1[x0 * ch + c], v11 = r1[(x0 + 1) * ch + c];
+  return (1 - ay) * ((1 - ax) * v00 + ax * v01) + ay * ((1 - ax) * v10 + ax * v11);
+}
+
+}  // namespace
+
+double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
+                             const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
+                             double scale, int window, int search_d) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (keyframe_image.empty() || current_image.empty() ||
+      keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
+      current_image.depth() != CV_8U || !(scale > 0) || !std::isfinite(scale)) {
+    return kInf;
+  }
+  const int h = window / 2;
+  const int ch = keyframe_image.channels();
+  // The keyframe window must lie inside the keyframe image (integer pixels around x).
+  const int kx = static_cast<int>(std::lround(x.x()));
+  const int ky = static_cast<int>(std::lround(x.y()));
+  if (kx - h < 0 || ky - h < 0 || kx + h >= keyframe_image.cols || ky + h >= keyframe_image.rows) {
+    return kInf;
+  }
+  // The warped window plus the search margin must lie inside the current image.
+  const double reach = scale * h + search_d + 1;
+  if (x_prime.x() - reach < 0 || x_prime.y() - reach < 0 ||
+      x_prime.x() + reach >= current_image.cols - 1 ||
+      x_prime.y() + reach >= current_image.rows - 1) {
+    return kInf;
+  }
+  const double off_x = kx - x.x(), off_y = ky - x.y();  // sub-pixel part of x
+  double best = kInf;
+  for (int dy = -search_d; dy <= search_d; ++dy) {
+    for (int dx = -search_d; dx <= search_d; ++dx) {
+      double sum = 0;
+      for (int wy = -h; wy <= h && sum < best; ++wy) {
+        const uint8_t* krow = keyframe_image.ptr<uint8_t>(ky + wy);
+        const double cy = x_prime.y() + scale * (wy + off_y) + dy;
+        for (int wx = -h; wx <= h; ++wx) {
+          const double cx = x_prime.x() + scale * (wx + off_x) + dx;
+          for (int c = 0; c < ch; ++c) {
+            sum += std::fabs(float(krow[(kx + wx) * ch + c]) -
+                             sample_bilinear(current_image, cx, cy, c));
+          }
+        }
+      }
+      best = std::min(best, sum);
+    }
+  }
+  return best / (double(window) * window * ch);
+}
+
+const char* to_string(PointDecision d) {
+  switch (d) {
+    case PointDecision::kKeepViewAngle:
+      return "keep:view-angle";
+    case PointDecision::kKeepSameAppearance:
+      return "keep:same-appearance";
+    case PointDecision::kKeepOccludedMoving:
+      return "keep:occluded-by-moving";
+    case PointDecision::kKeepOccludedStatic:
+      return "keep:occluded-by-static";
+    case PointDecision::kInvalidNothingInFront:
+      return "invalid:nothing-in-front";
+    case PointDecision::kInvalidSameObject:
+      return "invalid:same-object";
+    case PointDecision::kInvalidNoOcclusionHandling:
+      return "invalid:no-occlusion-handling";
+    case PointDecision::kKeepNotChecked:
+      return "keep:not-checked";
+  }
+  return "unknown";
+}
+
+PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen::Vector3d& n_x,
+                                    const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
+                                    const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,
+                                    int neighbour_count) {
+  // Alg. 1 line 4 (sign as in the prose): large view change -> keep V(X) = 1.
+  if (n_x.dot(n_x_prime) < p.tau_n) return PointDecision::kKeepViewAngle;
+  if (!std::isfinite(d_c)) return PointDecision::kKeepNotChecked;
+  if (d_c <= p.tau_c) return PointDecision::kKeepSameAppearance;
+  if (!p.occlusion_handling) return PointDecision::kInvalidNoOcclusionHandling;
+  // phi(x') empty: X is hidden by something never tracked, i.e. a moving object.
+  if (neighbour_count <= 0) return PointDecision::kKeepOccludedMoving;
+  bool all_behind = true;
+  for (int i = 0; i < neighbour_count; ++i) all_behind &= neighbours[i].depth_current >= depth_x;
+  if (all_behind) return PointDecision::kInvalidNothingInFront;
+  // Some X_y lies in front of X: X changed (X_y on the same object, close to X where X first
+  // appeared) or a static object occludes X (X_y far from X in that keyframe). The listing
+  // loops over all of phi(x'); the prose restricts the test to "those X_y with z_{X_y} < z_X",
+  // which is what we do: a point behind X cannot be the reason X looks different.
+  for (int i = 0; i < neighbour_count; ++i) {
+    const NeighbourPoint& y = neighbours[i];
+    if (y.depth_current >= depth_x || !y.in_first_keyframe) continue;
+    if ((x_p - y.pixel_in_first_keyframe).norm() < p.r2) return PointDecision::kInvalidSameObject;
+  }
+  return PointDecision::kKeepOccludedStatic;
+}
+
+bool update_landmark_counters(LandmarkCounters& c, LandmarkEvent e, int miss_threshold,
+                              int moved_threshold) {
+  auto inc = [](uint16_t& v) {
+    if (v < UINT16_MAX) ++v;
+  };
+  switch (e) {
+    case LandmarkEvent::kMatchedStill:
+      c.missed = 0;
+      c.moved = 0;
+      return false;
+    case LandmarkEvent::kMatchedMoved:
+      inc(c.moved);
+      return c.moved > moved_threshold;
+    case LandmarkEvent::kMissed:
+      inc(c.missed);
+      return c.missed > miss_threshold;
+  }
+  return false;
+}
+
+bool camera_is_stationary(const ChangeDetectionParams& p, const Eigen::Matrix3d& R_prev,
+                          const Eigen::Vector3d& c_prev, const Eigen::Matrix3d& R_cur,
+                          const Eigen::Vector3d& c_cur) {
+  const Eigen::Matrix3d dR = R_prev.transpose() * R_cur;
+  const double cos_angle = std::clamp((dR.trace() - 1.0) * 0.5, -1.0, 1.0);
+  const double angle_deg = std::acos(cos_angle) * 180.0 / M_PI;
+  return (c_cur - c_prev).norm() < p.stationary_translation &&
+         angle_deg < p.stationary_rotation_deg;
+}
+
+int reject_by_flow(const cv::Mat& flow, const float* xs, const float* ys, int count,
+                   double flow_threshold_px, uint8_t* keep) {
+  if (flow.empty() || flow.type() != CV_32FC2) return 0;
+  int rejected = 0;
+  const double t2 = flow_threshold_px * flow_threshold_px;
+  for (int i = 0; i < count; ++i) {
+    const int x = static_cast<int>(std::lround(xs[i]));
+    const int y = static_cast<int>(std::lround(ys[i]));
+    if (x < 0 || y < 0 || x >= flow.cols || y >= flow.rows) continue;
+    const cv::Vec2f f = flow.at<cv::Vec2f>(y, x);
+    if (double(f[0]) * f[0] + double(f[1]) * f[1] > t2) {
+      if (keep[i]) ++rejected;
+      keep[i] = 0;
+    }
+  }
+  return rejected;
+}
+
+}  // namespace rdslam

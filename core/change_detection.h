@@ -1,0 +1,147 @@
+// Scene-change detection of RDSLAM Section 4 ("For each input frame, we also need to measure
+// whether parts of the scene have changed") and Algorithm 1 (3D point updating with
+// occlusion handling), plus the landmark miss/moved counters and the optical-flow keypoint
+// rejection for a stationary camera of the second paper (Sections 3.3 and 4.2).
+//
+// These are pure functions and small value types over the inputs the SLAM map provides; the
+// map owns the points and keyframes and applies the decisions. Buffers passed in are owned
+// by the caller. Threads: any thread, no shared state; the SLAM system calls them from the
+// mapper thread (see core/slam.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <opencv2/core.hpp>
+
+#include "core/params.h"
+
+namespace rdslam {
+
+struct ChangeDetectionParams {
+  bool map_update = true;          // --no-map-update ablation (Figure 9) when false
+  bool occlusion_handling = true;  // --no-occlusion-handling ablation (Figures 4-5) when false
+  int closest_keyframes = 5;       // "we select 5 closest keyframes"
+  double keyframe_view_angle_deg = 30.0;  // Z-axis direction difference to pre-select keyframes
+  double histogram_threshold = 1.0;       // sum of R,G,B histogram distances that triggers checks
+  double tau_n = 0.8660254037844387;  // cos(30 deg): compare appearance only if n_x.n_x' >= tau_n
+  int window = 11;                    // W(x): 11x11 appearance window (eq. 2)
+  int search_d = 2;                   // local search radius |d| in pixels (eq. 2)
+  // tau_c on D_c normalised per pixel and channel (mean absolute difference in grey levels
+  // 0..255): the paper's sum over the window divided by window area and channel count, so the
+  // threshold does not depend on the window size.
+  double tau_c = 25.0;
+  double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
+  double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
+  double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid
+  // Second paper: per-landmark counters (miss threshold 10 frames, moved threshold 5 frames).
+  int miss_threshold = 10;
+  int moved_threshold = 5;
+  // Second paper, Sec. 3.3/4.2: optional dense optical-flow rejection of candidate points while
+  // the camera is stationary.
+  bool flow_rejection = false;
+  double flow_threshold_px = 1.0;         // flow magnitude above which a candidate is rejected
+  double stationary_translation = 0.002;  // camera moved less than this (map units) per frame
+  double stationary_rotation_deg = 0.2;   // and rotated less than this per frame
+
+  void visit(ParamVisitor& v);
+};
+
+// R, G, B histograms with 256 bins each, every channel L2-normalised (sum c_i^2 = 1).
+struct ColorHistogram {
+  std::array<float, 3 * 256> bins{};
+  bool valid = false;
+};
+
+// Computes the histogram of a BGR8 (or grey, used for all three channels) image, sampling
+// every `stride`-th pixel in x and y. No allocation.
+void compute_color_histogram(const cv::Mat& image, int stride, ColorHistogram& out);
+// Sum over R, G, B of the Euclidean distance between the normalised histograms.
+double histogram_difference(const ColorHistogram& a, const ColorHistogram& b);
+
+// Index of keyframes ranked for the change check: those whose optical axis is within
+// `max_angle_deg` of the current one, closest camera centres first, at most `k` of them.
+// z_axes/centres are world-frame unit optical axes and camera centres. Returns the count
+// written to `out` (capacity `out_capacity`). No allocation.
+int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vector3d& cur_centre,
+                             const Eigen::Vector3d* z_axes, const Eigen::Vector3d* centres,
+                             int count, double max_angle_deg, int k, int* out, int out_capacity);
+
+// Eq. (2): D_c(X) = min_d sum_{y in W(x)} |I_y - I_{y'+d}|, normalised per pixel and channel.
+// y' = x' + s (y - x) maps the keyframe window into the current image, with s the scale ratio
+// (depth in keyframe / depth in current frame), i.e. a fronto-parallel patch at the
+// estimated depth. Both images BGR8 or both grey. Returns +inf when a window leaves an image.
+double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
+                             const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
+                             double scale, int window, int search_d);
+
+// A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
+// current camera, and X_y's projection into the keyframe where X first appeared.
+struct NeighbourPoint {
+  Eigen::Vector2d pixel;
+  double depth_current = 0.0;               // z_{X_y}
+  Eigen::Vector2d pixel_in_first_keyframe;  // y_p
+  bool in_first_keyframe = false;           // y_p inside that keyframe's image and in front
+};
+
+enum class PointDecision : uint8_t {
+  kKeepViewAngle = 0,      // n_x . n_x' < tau_n: keep V(X) = 1 (possibly not visible)
+  kKeepSameAppearance,     // D_c <= tau_c
+  kKeepOccludedMoving,     // phi(x') empty: occluded by a moving (never tracked) object
+  kKeepOccludedStatic,     // a nearer tracked point far from X in the first keyframe: occlusion
+  kInvalidNothingInFront,  // all neighbours at or behind X: X itself changed
+  kInvalidSameObject,      // a nearer neighbour close to X in the first keyframe: X changed
+  kInvalidNoOcclusionHandling,  // ablation: D_c > tau_c invalidates directly
+  kKeepNotChecked,              // window outside the image or no appearance available
+};
+
+inline bool is_invalidation(PointDecision d) {
+  return d == PointDecision::kInvalidNothingInFront || d == PointDecision::kInvalidSameObject ||
+         d == PointDecision::kInvalidNoOcclusionHandling;
+}
+const char* to_string(PointDecision d);
+
+// Algorithm 1 for one point X that is valid in a selected keyframe:
+//  n_x, n_x_prime: unit viewing directions from X to the keyframe / current camera centres;
+//  d_c: appearance difference of eq. (2) (pass +inf when it could not be computed);
+//  depth_x: z_X, depth of X in the current camera; x_p: X's projection into the keyframe where
+//  it first appeared; neighbours: phi(x'), the tracked points within r1 of x' (the caller
+//  gathers them, e.g. with a grid).
+PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen::Vector3d& n_x,
+                                    const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
+                                    const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,
+                                    int neighbour_count);
+
+// "If the number of invalid 3D points and the common features shared with other keyframes is
+// larger than 90% of its total point number, we will label this keyframe as invalid."
+inline bool keyframe_is_invalid(int invalid_points, int shared_points, int total_points,
+                                double ratio) {
+  return total_points > 0 && (invalid_points + shared_points) > ratio * total_points;
+}
+
+// Second paper, Sec. 4.2: per-landmark counters.
+struct LandmarkCounters {
+  uint16_t missed = 0;
+  uint16_t moved = 0;
+};
+enum class LandmarkEvent : uint8_t { kMatchedStill, kMatchedMoved, kMissed };
+// Applies one observation; returns true when the landmark must be discarded.
+bool update_landmark_counters(LandmarkCounters& c, LandmarkEvent e, int miss_threshold,
+                              int moved_threshold);
+
+// True when the camera moved less than the stationary thresholds between two poses
+// (T_world_cam as rotation + centre).
+bool camera_is_stationary(const ChangeDetectionParams& p, const Eigen::Matrix3d& R_prev,
+                          const Eigen::Vector3d& c_prev, const Eigen::Matrix3d& R_cur,
+                          const Eigen::Vector3d& c_cur);
+
+// Second paper, Sec. 3.3: rejects candidate keypoints lying on image regions whose dense
+// optical-flow magnitude exceeds `flow_threshold_px` (camera stationary, so any flow is scene
+// motion). `flow` is a CV_32FC2 field from cv::calcOpticalFlowFarneback (the paper used
+// Horn-Schunck; Farneback is OpenCV 4's dense equivalent). keep[i] is set to 0 for rejected
+// points. Returns the number rejected.
+int reject_by_flow(const cv::Mat& flow, const float* xs, const float* ys, int count,
+                   double flow_threshold_px, uint8_t* keep);
+
+}  // namespace rdslam

@@ -1,0 +1,201 @@
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "core/change_detection.h"
+
+using namespace rdslam;
+
+namespace {
+
+// A textured BGR image: smoothed uniform noise, deterministic.
+cv::Mat textured(int w, int h, uint64_t seed) {
+  cv::Mat img(h, w, CV_8UC3);
+  cv::RNG rng(seed);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 1.5);
+  return img;
+}
+
+NeighbourPoint neighbour(double depth, Eigen::Vector2d y_p) {
+  NeighbourPoint n;
+  n.pixel = {0, 0};
+  n.depth_current = depth;
+  n.pixel_in_first_keyframe = y_p;
+  n.in_first_keyframe = true;
+  return n;
+}
+
+}  // namespace
+
+TEST(ColorHistogram, ChannelsAreL2Normalised) {
+  ColorHistogram h;
+  compute_color_histogram(textured(160, 120, 1), 1, h);
+  ASSERT_TRUE(h.valid);
+  for (int c = 0; c < 3; ++c) {
+    double ss = 0;
+    for (int i = 0; i < 256; ++i) ss += double(h.bins[c * 256 + i]) * h.bins[c * 256 + i];
+    EXPECT_NEAR(ss, 1.0, 1e-5);
+  }
+}
+
+TEST(ColorHistogram, SameImageZeroChangedRegionAboveThreshold) {
+  cv::Mat a = textured(320, 240, 2);
+  cv::Mat b = a.clone();
+  ColorHistogram ha, hb;
+  compute_color_histogram(a, 2, ha);
+  compute_color_histogram(b, 2, hb);
+  EXPECT_NEAR(histogram_difference(ha, hb), 0.0, 1e-9);
+  // A red object covering a third of the view changes all three channels' histograms.
+  cv::rectangle(b, cv::Rect(0, 0, 160, 160), cv::Scalar(20, 30, 230), cv::FILLED);
+  compute_color_histogram(b, 2, hb);
+  EXPECT_GT(histogram_difference(ha, hb), 1.0);
+}
+
+TEST(SelectClosestKeyframes, FiltersByViewAngleThenRanksByDistance) {
+  const Eigen::Vector3d z(0, 0, 1);
+  const Eigen::Vector3d side = Eigen::Vector3d(1, 0, 1).normalized();  // 45 deg away
+  Eigen::Vector3d axes[7] = {z, z, side, z, z, z, z};
+  Eigen::Vector3d centres[7] = {{5, 0, 0}, {1, 0, 0}, {0.1, 0, 0}, {3, 0, 0},
+                                {2, 0, 0}, {4, 0, 0}, {6, 0, 0}};
+  int out[5];
+  const int n =
+      select_closest_keyframes(z, Eigen::Vector3d::Zero(), axes, centres, 7, 30.0, 5, out, 5);
+  ASSERT_EQ(n, 5);
+  const int expected[5] = {1, 4, 3, 5, 0};  // keyframe 2 is nearest but looks 45 deg away
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(out[i], expected[i]) << i;
+}
+
+TEST(AppearanceDifference, ZeroForSamePatchAndFindsShiftWithinSearch) {
+  cv::Mat a = textured(200, 200, 3);
+  const Eigen::Vector2d x(100, 100);
+  EXPECT_NEAR(appearance_difference(a, x, a, x, 1.0, 11, 0), 0.0, 1e-9);
+  // The current image is the keyframe shifted by (2, -1) px; the projection is off by that.
+  cv::Mat shifted;
+  const cv::Matx23d M(1, 0, 2, 0, 1, -1);
+  cv::warpAffine(a, shifted, M, a.size());
+  EXPECT_GT(appearance_difference(a, x, shifted, x, 1.0, 11, 0), 5.0);
+  EXPECT_NEAR(appearance_difference(a, x, shifted, x, 1.0, 11, 2), 0.0, 1e-6);
+}
+
+TEST(AppearanceDifference, ScaleMapsTheWindowAtTheEstimatedDepth) {
+  cv::Mat a = textured(200, 200, 4);
+  cv::Mat big;
+  cv::resize(a, big, cv::Size(), 2.0, 2.0, cv::INTER_LINEAR);
+  const Eigen::Vector2d x(100, 100);
+  // Pixel (u, v) of `a` sits at (2u + 0.5, 2v + 0.5) in `big` (pixel-centre convention).
+  const Eigen::Vector2d xp(200.5, 200.5);
+  const double same = appearance_difference(a, x, big, xp, 2.0, 11, 0);
+  const double unscaled = appearance_difference(a, x, big, xp, 1.0, 11, 0);
+  EXPECT_LT(same, 4.0);
+  EXPECT_GT(unscaled, 2.0 * same);
+}
+
+TEST(AppearanceDifference, OutsideTheImageIsNotChecked) {
+  cv::Mat a = textured(100, 100, 5);
+  EXPECT_TRUE(std::isinf(appearance_difference(a, {2, 50}, a, {50, 50}, 1.0, 11, 2)));
+  EXPECT_TRUE(std::isinf(appearance_difference(a, {50, 50}, a, {97, 50}, 1.0, 11, 2)));
+}
+
+class Algorithm1 : public ::testing::Test {
+ protected:
+  ChangeDetectionParams p;
+  const Eigen::Vector3d n{0, 0, -1};
+  const Eigen::Vector2d x_p{100, 100};
+  const double depth_x = 4.0;
+  const double changed = 100.0;  // D_c above tau_c
+};
+
+TEST_F(Algorithm1, LargeViewChangeKeepsThePoint) {
+  const Eigen::Vector3d n2 = Eigen::Vector3d(std::sin(0.6), 0, -std::cos(0.6));  // 34 deg
+  EXPECT_EQ(update_point_validity(p, n, n2, changed, depth_x, x_p, nullptr, 0),
+            PointDecision::kKeepViewAngle);
+  const Eigen::Vector3d n3 = Eigen::Vector3d(std::sin(0.4), 0, -std::cos(0.4));  // 23 deg
+  EXPECT_EQ(update_point_validity(p, n, n3, changed, depth_x, x_p, nullptr, 0),
+            PointDecision::kKeepOccludedMoving);
+}
+
+TEST_F(Algorithm1, SameAppearanceKeeps) {
+  EXPECT_EQ(update_point_validity(p, n, n, p.tau_c - 1, depth_x, x_p, nullptr, 0),
+            PointDecision::kKeepSameAppearance);
+}
+
+TEST_F(Algorithm1, NoTrackedNeighboursMeansAMovingOccluderAndKeeps) {
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, nullptr, 0),
+            PointDecision::kKeepOccludedMoving);
+}
+
+TEST_F(Algorithm1, AllNeighboursBehindInvalidates) {
+  NeighbourPoint ys[2] = {neighbour(4.0, {300, 300}), neighbour(6.0, {10, 10})};
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2),
+            PointDecision::kInvalidNothingInFront);
+}
+
+TEST_F(Algorithm1, NearerNeighbourCloseInFirstKeyframeInvalidates) {
+  NeighbourPoint ys[2] = {neighbour(6.0, {300, 300}), neighbour(2.0, {110, 105})};
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2),
+            PointDecision::kInvalidSameObject);
+}
+
+TEST_F(Algorithm1, NearerNeighbourFarInFirstKeyframeIsAStaticOccluderAndKeeps) {
+  NeighbourPoint ys[2] = {neighbour(6.0, {101, 101}), neighbour(2.0, {160, 100})};
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2),
+            PointDecision::kKeepOccludedStatic);
+}
+
+TEST_F(Algorithm1, WithoutOcclusionHandlingAnyAppearanceChangeInvalidates) {
+  p.occlusion_handling = false;
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, nullptr, 0),
+            PointDecision::kInvalidNoOcclusionHandling);
+  EXPECT_TRUE(is_invalidation(PointDecision::kInvalidNoOcclusionHandling));
+  EXPECT_FALSE(is_invalidation(PointDecision::kKeepOccludedMoving));
+}
+
+TEST(KeyframeValidity, InvalidAboveNinetyPercent) {
+  EXPECT_FALSE(keyframe_is_invalid(40, 50, 100, 0.9));
+  EXPECT_TRUE(keyframe_is_invalid(41, 50, 100, 0.9));
+  EXPECT_FALSE(keyframe_is_invalid(0, 0, 0, 0.9));
+}
+
+TEST(LandmarkCounters, MissAndMovedThresholdsAsInTheSecondPaper) {
+  LandmarkCounters c;
+  for (int i = 0; i < 10; ++i)
+    EXPECT_FALSE(update_landmark_counters(c, LandmarkEvent::kMissed, 10, 5));
+  EXPECT_TRUE(update_landmark_counters(c, LandmarkEvent::kMissed, 10, 5));
+  LandmarkCounters d;
+  for (int i = 0; i < 5; ++i)
+    EXPECT_FALSE(update_landmark_counters(d, LandmarkEvent::kMatchedMoved, 10, 5));
+  EXPECT_FALSE(update_landmark_counters(d, LandmarkEvent::kMatchedStill, 10, 5));
+  EXPECT_EQ(d.moved, 0);
+  EXPECT_EQ(d.missed, 0);
+}
+
+TEST(Stationary, SmallMotionIsStationary) {
+  ChangeDetectionParams p;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  EXPECT_TRUE(camera_is_stationary(p, I, {0, 0, 0}, I, {0.001, 0, 0}));
+  EXPECT_FALSE(camera_is_stationary(p, I, {0, 0, 0}, I, {0.01, 0, 0}));
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(1.0 * M_PI / 180, Eigen::Vector3d::UnitY()).matrix();
+  EXPECT_FALSE(camera_is_stationary(p, I, {0, 0, 0}, R, {0, 0, 0}));
+}
+
+TEST(FlowRejection, RejectsPointsOnAMovingBlockOnly) {
+  // A textured block moves 3 px to the right over a static textured background.
+  cv::Mat bg = textured(160, 120, 6), obj = textured(40, 40, 7);
+  cv::Mat f0 = bg.clone(), f1 = bg.clone();
+  obj.copyTo(f0(cv::Rect(50, 40, 40, 40)));
+  obj.copyTo(f1(cv::Rect(53, 40, 40, 40)));
+  cv::Mat g0, g1, flow;
+  cv::cvtColor(f0, g0, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(f1, g1, cv::COLOR_BGR2GRAY);
+  cv::calcOpticalFlowFarneback(g0, g1, flow, 0.5, 3, 15, 3, 5, 1.2, 0);
+  const float xs[3] = {70, 20, 140}, ys[3] = {60, 20, 100};
+  uint8_t keep[3] = {1, 1, 1};
+  EXPECT_EQ(reject_by_flow(flow, xs, ys, 3, 1.0, keep), 1);
+  EXPECT_EQ(keep[0], 0);
+  EXPECT_EQ(keep[1], 1);
+  EXPECT_EQ(keep[2], 1);
+}
