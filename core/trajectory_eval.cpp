@@ -3,6 +3,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace rdslam {
@@ -180,9 +181,10 @@ EvalResult evaluate_trajectories(const Trajectory& gt, const Trajectory& est,
   r.pairs = params.by_index ? associate_by_index(gt, est)
                             : associate_by_time(gt, est, params.max_diff_ns);
   if (r.pairs.empty()) {
-    r.error = params.by_index ? "a trajectory is empty"
-                              : "no pose of the estimate has a ground-truth stamp within " +
-                                    std::to_string(params.max_diff_ns / 1e9) + " s";
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "no pose of the estimate has a ground-truth stamp within %g s",
+                  params.max_diff_ns * 1e-9);
+    r.error = params.by_index ? "a trajectory is empty" : buf;
     return r;
   }
   const size_t n = r.pairs.size();
