@@ -14,7 +14,7 @@ namespace {
 // Reprojection of a world point into a keyframe with pose [angle-axis(3), t(3)] (T_cam_world),
 // residual in units of the feature's noise scale (Ceres example style: functor + Create()).
 struct ReprojectionCost {
-  ReprojectionCost(const Intrinsics& K, double u, double v, double inv_sigma)
+  ReprojectionCost(const PinholeIntrinsics& K, double u, double v, double inv_sigma)
       : K_(K), u_(u), v_(v), inv_sigma_(inv_sigma) {}
 
   template <typename T>
@@ -36,12 +36,13 @@ struct ReprojectionCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Intrinsics& K, double u, double v, double inv_sigma) {
+  static ceres::CostFunction* Create(const PinholeIntrinsics& K, double u, double v,
+                                     double inv_sigma) {
     return new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 6, 3>(
         new ReprojectionCost(K, u, v, inv_sigma));
   }
 
-  Intrinsics K_;
+  PinholeIntrinsics K_;
   double u_, v_, inv_sigma_;
 };
 
@@ -73,7 +74,7 @@ void BundleAdjustmentParams::visit(ParamVisitor& v) {
   v.field("second_pass", second_pass, "re-optimise after removing outliers");
 }
 
-BundleAdjustmentStats bundle_adjust(Map& map, const Intrinsics& K,
+BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
                                     const std::vector<int>& window_kfs,
                                     const BundleAdjustmentParams& params) {
   BundleAdjustmentStats st;

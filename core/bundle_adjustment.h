@@ -35,7 +35,7 @@ struct BundleAdjustmentStats {
 // points they observe; other keyframes observing those points are fixed. Observations with a
 // normalised squared error above 5.991 after optimisation are removed from the map, and
 // points left with fewer than 2 observations are erased.
-BundleAdjustmentStats bundle_adjust(Map& map, const Intrinsics& K,
+BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
                                     const std::vector<int>& window_kfs,
                                     const BundleAdjustmentParams& params);
 

@@ -45,7 +45,7 @@ double parallax_cos(const Eigen::Vector3d& p_world, const Eigen::Vector3d& c0,
   return a.dot(b) / (na * nb);
 }
 
-double refine_point(const Intrinsics& K, const Pose* poses, const Eigen::Vector2d* obs,
+double refine_point(const PinholeIntrinsics& K, const Pose* poses, const Eigen::Vector2d* obs,
                     const double* sigma_px, int n, Eigen::Vector3d& p_world, int iterations) {
   double rms = 0;
   for (int it = 0; it <= iterations; ++it) {
@@ -75,7 +75,7 @@ double refine_point(const Intrinsics& K, const Pose* poses, const Eigen::Vector2
   return rms;
 }
 
-Eigen::Matrix3d fundamental_from_poses(const Intrinsics& K, const Pose& T0, const Pose& T1) {
+Eigen::Matrix3d fundamental_from_poses(const PinholeIntrinsics& K, const Pose& T0, const Pose& T1) {
   // T_1_0 = T1 * T0^-1; E = [t]x R; F = K^-T E K^-1.
   const Pose T10 = T1 * T0.inverse();
   const Eigen::Matrix3d E = skew(T10.t) * T10.R;

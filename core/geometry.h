@@ -25,7 +25,7 @@ struct Pose {
 };
 
 // Pinhole intrinsics of undistorted (ideal) pixels.
-struct Intrinsics {
+struct PinholeIntrinsics {
   double fx = 1, fy = 1, cx = 0, cy = 0;
   Eigen::Vector2d project(const Eigen::Vector3d& p_cam) const {
     const double iz = 1.0 / p_cam.z();
@@ -54,12 +54,12 @@ double parallax_cos(const Eigen::Vector3d& p_world, const Eigen::Vector3d& c0,
 // error over all views of a track, starting from `p_world`. `scale_px` is the per-view
 // measurement standard deviation in pixels. Returns the final RMS error in pixels (weighted),
 // or a negative value if a point ends up behind a camera.
-double refine_point(const Intrinsics& K, const Pose* poses, const Eigen::Vector2d* obs,
+double refine_point(const PinholeIntrinsics& K, const Pose* poses, const Eigen::Vector2d* obs,
                     const double* sigma_px, int n, Eigen::Vector3d& p_world, int iterations = 5);
 
 // Fundamental matrix of the pair: x1^T F x0 = 0 for ideal pixels, from T_cam0_world,
 // T_cam1_world.
-Eigen::Matrix3d fundamental_from_poses(const Intrinsics& K, const Pose& T0, const Pose& T1);
+Eigen::Matrix3d fundamental_from_poses(const PinholeIntrinsics& K, const Pose& T0, const Pose& T1);
 
 // Squared distance (pixels^2) of x1 to the epipolar line F x0.
 inline double epipolar_dist2(const Eigen::Matrix3d& F, const Eigen::Vector2d& x0,

@@ -51,7 +51,7 @@ void InitializerParams::visit(ParamVisitor& v) {
 }
 
 Initializer::Initializer(const InitializerParams& params, const FeatureParams& features,
-                         const Intrinsics& K, const BundleAdjustmentParams& ba)
+                         const PinholeIntrinsics& K, const BundleAdjustmentParams& ba)
     : params_(params), fparams_(features), K_(K), ba_(ba) {}
 
 void Initializer::reset() {
@@ -140,7 +140,7 @@ struct Hypothesis {
   std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> pts;
 };
 
-void check_motion(const Intrinsics& K, const std::vector<cv::Point2f>& x0,
+void check_motion(const PinholeIntrinsics& K, const std::vector<cv::Point2f>& x0,
                   const std::vector<cv::Point2f>& x1, Hypothesis& h) {
   const Pose T0;
   const Eigen::Vector3d c0 = T0.centre(), c1 = h.T.centre();

@@ -81,8 +81,8 @@ const char* to_string(InitStatus s);
 
 class Initializer {
  public:
-  Initializer(const InitializerParams& params, const FeatureParams& features, const Intrinsics& K,
-              const BundleAdjustmentParams& ba);
+  Initializer(const InitializerParams& params, const FeatureParams& features,
+              const PinholeIntrinsics& K, const BundleAdjustmentParams& ba);
   void reset();
   // Returns kOk and fills `out` when the map can be initialized from the reference and `cur`.
   InitStatus add_frame(const Features& cur, int64_t stamp_ns, InitResult& out);
@@ -95,7 +95,7 @@ class Initializer {
 
   InitializerParams params_;
   FeatureParams fparams_;
-  Intrinsics K_;
+  PinholeIntrinsics K_;
   BundleAdjustmentParams ba_;
   Features ref_;
   bool has_ref_ = false;

@@ -72,7 +72,7 @@ class Mapper {
 
   MapperParams params_;
   FeatureParams fparams_;
-  Intrinsics K_;
+  PinholeIntrinsics K_;
   std::shared_ptr<SlamLink> link_;
   Map map_;
   uint32_t epoch_ = 0;

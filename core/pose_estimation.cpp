@@ -11,7 +11,7 @@ namespace {
 constexpr double kChi2 = 5.991;  // chi-square 2 DoF, 95%
 }
 
-PoseRefineStats refine_pose(const Intrinsics& K, const Eigen::Vector3d* p_world,
+PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n, Pose& T,
                             uint8_t* inlier, int rounds, int iterations) {
   PoseRefineStats st;
@@ -76,7 +76,7 @@ PoseRefineStats refine_pose(const Intrinsics& K, const Eigen::Vector3d* p_world,
   return st;
 }
 
-PoseEstimator::PoseEstimator(const Intrinsics& K, int max_correspondences, uint64_t seed)
+PoseEstimator::PoseEstimator(const PinholeIntrinsics& K, int max_correspondences, uint64_t seed)
     : K_(K), max_n_(max_correspondences), seed_(seed) {}
 
 int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs,

@@ -27,21 +27,21 @@ struct PoseRefineStats {
 // observation i (pixels, grows with the pyramid level). Observations whose squared normalised
 // error exceeds 5.991 (chi-square 2 DoF, 95%) are classified outliers in `inlier[i]` (0/1);
 // outliers are excluded from the next round. Does not allocate.
-PoseRefineStats refine_pose(const Intrinsics& K, const Eigen::Vector3d* p_world,
+PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n,
                             Pose& T_cam_world, uint8_t* inlier, int rounds = 4,
                             int iterations = 10);
 
 class PoseEstimator {
  public:
-  PoseEstimator(const Intrinsics& K, int max_correspondences, uint64_t seed = 1);
+  PoseEstimator(const PinholeIntrinsics& K, int max_correspondences, uint64_t seed = 1);
   // Robust pose without prior (minimal samples + refinement). Returns the inlier count
   // (0 on failure). Relocalization only: the OpenCV fallback allocates.
   int estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs, const float* sigma_px,
                int n, Pose& T_cam_world, uint8_t* inlier);
 
  private:
-  Intrinsics K_;
+  PinholeIntrinsics K_;
   int max_n_;
   uint64_t seed_;
 };

@@ -1,10 +1,17 @@
 #include "core/slam.h"
 
 #include <chrono>
+#include <ctime>
 
 namespace rdslam {
 
 namespace {
+
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
 
 class TrackerStageImpl : public TrackerStage {
  public:
@@ -65,7 +72,9 @@ OfflineRun run_offline(FrameSource& source, const SlamParams& params, const Came
     of.stamp_ns = frame.stamp_ns;
     of.seq = frame.seq;
     const auto t0 = Clock::now();
+    const double c0 = thread_cpu_ms();
     of.result = tracker.track(frame);
+    of.track_cpu_ms = thread_cpu_ms() - c0;
     const auto t1 = Clock::now();
     while (mapper.step(0)) {
     }

@@ -44,8 +44,9 @@ struct OfflineFrame {
   int64_t stamp_ns = 0;
   uint64_t seq = 0;
   TrackResult result;
-  double track_ms = 0.0;   // tracker time for this frame
-  double mapper_ms = 0.0;  // mapper time spent after this frame
+  double track_ms = 0.0;      // tracker wall time for this frame
+  double track_cpu_ms = 0.0;  // tracker thread CPU time (robust to a loaded machine)
+  double mapper_ms = 0.0;     // mapper time spent after this frame
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 

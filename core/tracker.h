@@ -84,7 +84,7 @@ class Tracker {
   TrackerParams params_;
   FeatureParams fparams_;
   CameraModel camera_;
-  Intrinsics K_;
+  PinholeIntrinsics K_;
   std::shared_ptr<SlamLink> link_;
   FeatureExtractor extractor_;
   Initializer initializer_;

@@ -15,6 +15,7 @@
 #include "core/trajectory.h"
 #include "core/trajectory_eval.h"
 #include "drivers/frame_source.h"
+#include "firmware_app/config.h"
 
 namespace rdslam::test {
 
@@ -73,7 +74,7 @@ inline Trajectory tracked_trajectory(const OfflineRun& run) {
 struct RunSummary {
   int frames = 0, tracked = 0, first_tracked = -1;
   double tracked_frac = 0, ate_rmse_m = 0, path_m = 0, ate_pct = 0;
-  double track_ms_median = 0, track_ms_p99 = 0, mapper_ms_total = 0;
+  double track_ms_median = 0, track_ms_p99 = 0, mapper_ms_total = 0, track_cpu_ms_median = 0;
   bool eval_ok = false;
 };
 
@@ -86,19 +87,23 @@ inline double percentile(std::vector<double> v, double q) {
 inline RunSummary summarize(const OfflineRun& run, const Trajectory& gt, const char* name) {
   RunSummary s;
   s.frames = static_cast<int>(run.frames.size());
-  std::vector<double> ms;
+  std::vector<double> ms, cpu;
   for (size_t i = 0; i < run.frames.size(); ++i) {
     const auto& f = run.frames[i];
     if (is_tracked(f.result.state)) {
       ++s.tracked;
       if (s.first_tracked < 0) s.first_tracked = static_cast<int>(i);
     }
-    if (f.result.state != TrackingState::kInitializing) ms.push_back(f.track_ms);
+    if (f.result.state != TrackingState::kInitializing) {
+      ms.push_back(f.track_ms);
+      cpu.push_back(f.track_cpu_ms);
+    }
     s.mapper_ms_total += f.mapper_ms;
   }
   s.tracked_frac = s.frames ? double(s.tracked) / s.frames : 0.0;
   s.track_ms_median = percentile(ms, 0.5);
   s.track_ms_p99 = percentile(ms, 0.99);
+  s.track_cpu_ms_median = percentile(cpu, 0.5);
   const Trajectory est = tracked_trajectory(run);
   if (!gt.empty() && est.size() >= 3) {
     EvalParams ep;
@@ -113,21 +118,35 @@ inline RunSummary summarize(const OfflineRun& run, const Trajectory& gt, const c
   }
   std::printf(
       "[slam] %s: frames %d tracked %d (%.1f%%) first %d | ATE rmse %.4f m over %.2f m "
-      "(%.3f%%) | track ms median %.2f p99 %.2f | mapper total %.0f ms | KF %d pts %d "
+      "(%.3f%%) | track ms median %.2f (cpu %.2f) p99 %.2f | mapper total %.0f ms | KF %d pts %d "
       "(accepted %d rejected %d culled %d)\n",
       name, s.frames, s.tracked, 100 * s.tracked_frac, s.first_tracked, s.ate_rmse_m, s.path_m,
-      s.ate_pct, s.track_ms_median, s.track_ms_p99, s.mapper_ms_total, run.final_keyframes,
-      run.final_points, run.mapper.keyframes_accepted, run.mapper.keyframes_rejected,
-      run.mapper.keyframes_culled);
+      s.ate_pct, s.track_ms_median, s.track_cpu_ms_median, s.track_ms_p99, s.mapper_ms_total,
+      run.final_keyframes, run.final_points, run.mapper.keyframes_accepted,
+      run.mapper.keyframes_rejected, run.mapper.keyframes_culled);
   return s;
 }
 
-// Feature mode from the environment (RDSLAM_TEST_MODE=sift), default the fast mode.
+// Parameters: defaults, the feature mode from RDSLAM_TEST_MODE (sift | orb) and optional
+// comma-separated overrides in RDSLAM_TEST_SET ("tracker.m1=100,mapper.m2=60") for
+// experiments; the committed tests run with the defaults.
 inline SlamParams params_from_env() {
-  SlamParams p;
+  std::vector<std::string> overrides;
   const char* m = std::getenv("RDSLAM_TEST_MODE");
-  if (m && std::string(m) == "sift") p.features.mode = "sift";
-  return p;
+  if (m && *m) overrides.push_back(std::string("features.mode=") + m);
+  if (const char* set = std::getenv("RDSLAM_TEST_SET")) {
+    std::string all(set);
+    size_t start = 0;
+    while (start < all.size()) {
+      const size_t comma = all.find(',', start);
+      const std::string item =
+          all.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      if (!item.empty()) overrides.push_back(item);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+  }
+  return load_config("", overrides).slam;
 }
 
 }  // namespace rdslam::test
