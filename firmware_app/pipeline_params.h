@@ -1,0 +1,44 @@
+// Configuration of the pipeline runtime: the `pipeline` section (frame pool and rings,
+// replay pacing) and the `threads` section (one row per pipeline thread: cores and
+// priority), the PX4-style "one table" of who runs where.
+//
+// Ownership: plain values inside AppConfig. Threads: start-up only.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/params.h"
+
+namespace rdslam {
+
+struct PipelineParams {
+  int pool_slots = 8;               // preallocated frames shared by capture and tracker
+  int output_ring_capacity = 64;    // tracker -> publisher messages (rounded up to 2^k)
+  int read_timeout_ms = 100;        // capture: longest FrameSource::read() wait (stop latency)
+  int mapper_step_timeout_ms = 50;  // mapper: longest MapperStage::step() wait
+  int stats_period_ms = 1000;       // rdslam.status_t and the stats log line
+  // Recorded sources in `rdslam run`: 1 = real time at the recorded timestamps (hardware in
+  // the loop), X = X times real time, 0 = as fast as the tracker goes, lossless.
+  double replay_speed = 1.0;
+
+  void visit(ParamVisitor& v);
+};
+
+// One pipeline thread: the CPU cores it may run on (empty = any) and its SCHED_FIFO
+// priority (0 = normal SCHED_OTHER scheduling; 1..99 needs CAP_SYS_NICE or LimitRTPRIO).
+struct ThreadSpec {
+  std::vector<int> cores;
+  int priority = 0;
+};
+
+struct ThreadParams {
+  ThreadSpec capture;
+  ThreadSpec tracker;
+  ThreadSpec mapper;
+  ThreadSpec publisher;
+
+  void visit(ParamVisitor& v);
+};
+
+}  // namespace rdslam
