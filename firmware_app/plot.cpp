@@ -243,7 +243,7 @@ void draw_top_view(cv::Mat& img, const cv::Rect& area, const TrajectoryPlot& plo
       cv::circle(img, cv::Point(static_cast<int>(p0.x), static_cast<int>(p0.y)), 6, t.color, 2,
                  cv::LINE_AA);
     }
-    legend.push_back({t.label, t.color, false});
+    if (!t.label.empty()) legend.push_back({t.label, t.color, false});
   }
   if (!plot.tracks.empty()) legend.push_back({"start", cv::Scalar(90, 90, 90), true});
   draw_scale_bar(img, ax);
@@ -282,7 +282,7 @@ void draw_curves(cv::Mat& img, const cv::Rect& area, const TrajectoryPlot& plot)
       }
     }
     draw_polyline(img, ax, pts, c.color, 2);
-    legend.push_back({c.label, c.color, false});
+    if (!c.label.empty()) legend.push_back({c.label, c.color, false});
   }
   draw_legend(img, area, legend);
 }

@@ -14,14 +14,14 @@
 namespace rdslam {
 
 struct PlotTrack {
-  std::string label;
-  cv::Scalar color;  // BGR
+  std::string label;  // legend text; empty: not in the legend
+  cv::Scalar color;   // BGR
   std::vector<Eigen::Vector3d> positions;
   int thickness = 2;
 };
 
 struct PlotCurve {
-  std::string label;
+  std::string label;  // legend text; empty: not in the legend
   cv::Scalar color;
   std::vector<double> t_s;     // x: time in seconds
   std::vector<double> values;  // y, same size as t_s
