@@ -52,7 +52,11 @@ std::string tick_label(double v, double step) {
   if (std::fabs(v) < step * 1e-6) v = 0.0;  // no "-0" or "1e-17"
   const int decimals = std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9)));
   char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  if (decimals > 4 || std::fabs(v) >= 1e6) {
+    std::snprintf(buf, sizeof(buf), "%.3g", v);  // "5e-07" fits the margin, "0.0000005" not
+  } else {
+    std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  }
   return buf;
 }
 
