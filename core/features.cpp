@@ -12,6 +12,7 @@ namespace {
 constexpr int kHalfPatch = 15;    // orientation patch radius (ORB)
 constexpr int kEdge = 19;         // border so rotated BRIEF tests stay inside the image
 constexpr int kPatternClip = 13;  // |x|,|y| of test points: 13*sqrt(2) < kEdge
+constexpr int kAngleBins = 32;    // orientation bins of the pre-rotated pattern
 
 // Deterministic BRIEF test pattern (Calonder et al.'s G II: isotropic Gaussian, sigma = S/5
 // for a 31-pixel patch), from a fixed 64-bit LCG and Box-Muller so every build and platform
@@ -143,6 +144,20 @@ void Features::copy_from(const Features& o) {
 FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraModel& camera)
     : params_(params), camera_(camera) {
   pattern_ = make_pattern();
+  // Rotated test points (x, y) for each orientation bin: 256 tests x 2 points.
+  rot_xy_.resize(static_cast<size_t>(kAngleBins) * 512 * 2);
+  for (int bin = 0; bin < kAngleBins; ++bin) {
+    const double a = 2.0 * M_PI * bin / kAngleBins;
+    const double ca = std::cos(a), sa = std::sin(a);
+    for (int t = 0; t < 256; ++t) {
+      for (int e = 0; e < 2; ++e) {
+        const int px = pattern_[t * 4 + 2 * e], py = pattern_[t * 4 + 2 * e + 1];
+        const size_t k = (static_cast<size_t>(bin) * 512 + t * 2 + e) * 2;
+        rot_xy_[k] = static_cast<int>(std::lround(ca * px - sa * py));
+        rot_xy_[k + 1] = static_cast<int>(std::lround(sa * px + ca * py));
+      }
+    }
+  }
   // Circular patch bounds for the intensity centroid (as in ORB).
   umax_.assign(kHalfPatch + 1, 0);
   const int vmax = static_cast<int>(std::floor(kHalfPatch * std::sqrt(2.0) / 2 + 1));
@@ -160,6 +175,8 @@ FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraMode
   level_quota_.resize(L);
   pyramid_.resize(L);
   blurred_.resize(L);
+  rot_off_.resize(L);
+  rot_step_.assign(L, -1);
   double total = 0;
   for (int l = 0; l < L; ++l) {
     level_scale_[l] = static_cast<float>(std::pow(params_.scale_factor, l));
@@ -300,21 +317,30 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
           m01 += v * vsum;
         }
         const float angle = std::atan2(static_cast<float>(m01), static_cast<float>(m10));
-        const float ca = std::cos(angle), sa = std::sin(angle);
-        // Steered BRIEF on the smoothed level image.
+        // Steered BRIEF on the smoothed level image, with the test pattern pre-rotated to
+        // kAngleBins orientations (as ORB's lookup table; 11.25 degree bins).
         const cv::Mat& b = blurred_[l];
         const uchar* bc = b.ptr<uchar>(y) + x;
         const int bstep = static_cast<int>(b.step1());
+        if (rot_step_[l] != bstep) {
+          rot_step_[l] = bstep;
+          rot_off_[l].resize(static_cast<size_t>(kAngleBins) * 512);
+          for (int bin = 0; bin < kAngleBins; ++bin) {
+            for (int k = 0; k < 512; ++k) {
+              rot_off_[l][bin * 512 + k] =
+                  rot_xy_[(bin * 512 + k) * 2 + 1] * bstep + rot_xy_[(bin * 512 + k) * 2];
+            }
+          }
+        }
+        int bin = static_cast<int>(std::lround(angle * (kAngleBins / (2.0f * float(M_PI)))));
+        bin = ((bin % kAngleBins) + kAngleBins) % kAngleBins;
+        const int* off = &rot_off_[l][bin * 512];
         uint8_t* d = out.desc.ptr<uint8_t>(out.count);
         for (int byte = 0; byte < 32; ++byte) {
           uint8_t val = 0;
           for (int bit = 0; bit < 8; ++bit) {
-            const int* p = &pattern_[(byte * 8 + bit) * 4];
-            const int x0 = static_cast<int>(std::lround(ca * p[0] - sa * p[1]));
-            const int y0 = static_cast<int>(std::lround(sa * p[0] + ca * p[1]));
-            const int x1 = static_cast<int>(std::lround(ca * p[2] - sa * p[3]));
-            const int y1 = static_cast<int>(std::lround(sa * p[2] + ca * p[3]));
-            val |= static_cast<uint8_t>((bc[y0 * bstep + x0] < bc[y1 * bstep + x1]) << bit);
+            const int k = (byte * 8 + bit) * 2;
+            val |= static_cast<uint8_t>((bc[off[k]] < bc[off[k + 1]]) << bit);
           }
           d[byte] = val;
         }

@@ -100,8 +100,11 @@ class FeatureExtractor {
   std::vector<cv::KeyPoint> fast_buf_;
   std::vector<int> rank_buf_, cell_count_, rank_hist_;
   std::vector<int> umax_;
-  std::vector<int> pattern_;  // 256 pairs: x0 y0 x1 y1
-  cv::Mat undistort_map_;     // CV_32FC2 per raw pixel -> ideal pixel (empty: no distortion)
+  std::vector<int> pattern_;               // 256 pairs: x0 y0 x1 y1
+  std::vector<int> rot_xy_;                // pattern rotated to each orientation bin
+  std::vector<std::vector<int>> rot_off_;  // per level: rot_xy_ as pixel offsets
+  std::vector<int> rot_step_;              // image step rot_off_ was built for
+  cv::Mat undistort_map_;  // CV_32FC2 per raw pixel -> ideal pixel (empty: no distortion)
   cv::Ptr<cv::SIFT> sift_;
   std::vector<cv::KeyPoint> sift_kps_;
   cv::Mat sift_desc_;

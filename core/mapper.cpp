@@ -483,8 +483,15 @@ void Mapper::publish() {
     kf_index[id] = static_cast<int>(s->kf_ids.size());
     s->kf_ids.push_back(id);
     s->kf_pose.push_back(k.T_cam_world);
+    // Points of the keyframe that are well established (ORB-SLAM: >= 3 observations once the
+    // map has more than 2 keyframes): the tracker's keyframe rule compares against these.
+    const size_t min_obs = map_.keyframes.size() > 2 ? 3 : 2;
     int n = 0;
-    for (int64_t pid : k.point_of) n += pid >= 0;
+    for (int64_t pid : k.point_of) {
+      if (pid < 0) continue;
+      auto it = map_.points.find(pid);
+      n += it != map_.points.end() && it->second.obs.size() >= min_obs;
+    }
     s->kf_points.push_back(n);
   }
   const int cols = s->binary ? 32 : 128;

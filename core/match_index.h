@@ -42,8 +42,8 @@ struct MapSnapshot {
   // Keyframes.
   std::vector<int> kf_ids;
   std::vector<Pose, Eigen::aligned_allocator<Pose>> kf_pose;  // T_cam_world
-  std::vector<int> kf_points;                                 // points each keyframe observes
-  std::unordered_map<int64_t, int> row_of;                    // point id -> row
+  std::vector<int> kf_points;               // well-observed points of each keyframe (>= 3 views)
+  std::unordered_map<int64_t, int> row_of;  // point id -> row
   // SIFT mode: the paper's KD-tree over `desc` (FLANN, 4 randomised trees).
   std::unique_ptr<cv::flann::Index> kdtree;
 

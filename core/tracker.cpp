@@ -18,7 +18,7 @@ void TrackerParams::visit(ParamVisitor& v) {
   v.field("local_search_px", local_search_px, 0.5, 100.0, "map-point projection search radius");
   v.field("m1", m1, 1, 100000, "paper Sec. 4: fewer common features -> potential keyframe");
   v.field("keyframe_overlap_ratio", keyframe_overlap_ratio, 0.0, 1.0,
-          "or fewer than this fraction of the reference keyframe's points");
+          "or tracked points below this fraction of the reference keyframe's");
   v.field("max_keyframe_interval", max_keyframe_interval, 1, 100000,
           "frames after which a keyframe is proposed anyway");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
@@ -322,7 +322,7 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   ref_kf_shared_ = kf_votes_[ref];
   ref_kf_points_ = s.kf_points[ref];
   const bool few_common = ref_kf_shared_ < params_.m1 ||
-                          ref_kf_shared_ < params_.keyframe_overlap_ratio * ref_kf_points_;
+                          stats_.inliers < params_.keyframe_overlap_ratio * ref_kf_points_;
   if (!few_common && frames_since_kf_ < params_.max_keyframe_interval) return;
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;  // the mapper has not taken the previous candidate yet

@@ -18,8 +18,9 @@
 //
 // Keyframe rule (Sec. 4): a frame whose pose was found is a potential keyframe when it shares
 // fewer than m1 tracked points with its reference keyframe (the keyframe sharing most), or
-// fewer than `keyframe_overlap_ratio` of the points that keyframe tracks (ORB features are
-// denser than SIFT: an absolute m1 = 80 alone reacts too late), or after
+// when it tracks fewer than `keyframe_overlap_ratio` times the reference keyframe's
+// well-observed points (ORB-SLAM's monocular rule, 0.9: ORB features are denser than the
+// paper's SIFT, so the absolute m1 = 80 alone reacts too late), or after
 // `max_keyframe_interval` frames. The mapper then accepts it only if it contributes more than
 // m2 new points (condition 3).
 //
@@ -47,7 +48,7 @@ struct TrackerParams {
   double motion_search_px = 15.0;       // radius of the motion-model search (level-0 pixels)
   double local_search_px = 4.0;         // radius of the map-point projection search
   int m1 = 80;                          // paper Sec. 4: fewer common features -> potential keyframe
-  double keyframe_overlap_ratio = 0.8;  // or fewer than this fraction of the reference's points
+  double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
   InitializerParams init;
