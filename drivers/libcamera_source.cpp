@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -22,7 +23,14 @@ namespace {
 
 namespace lc = libcamera;
 
-constexpr int kMaxRequests = 16;  // LibcameraParams::buffers is limited to this
+constexpr int kMaxRequests = 16;
+
+// libcamera logs INFO/WARN lines (e.g. "No IPA found") to stderr by default, which would
+// interleave with rdslam's journald-formatted log; keep its errors only, unless the user
+// asked for more with libcamera's own LIBCAMERA_LOG_LEVELS.
+void quiet_libcamera_log() {
+  if (!std::getenv("LIBCAMERA_LOG_LEVELS")) lc::logSetLevel("*", "ERROR");
+}  // LibcameraParams::buffers is limited to this
 
 struct Candidate {
   lc::PixelFormat format;
@@ -107,6 +115,7 @@ class LibcameraSource final : public FrameSource {
 LibcameraSource::LibcameraSource(const std::string& which, const LibcameraParams& params,
                                  int default_width, int default_height)
     : which_(which), params_(params) {
+  quiet_libcamera_log();
   manager_ = std::make_unique<lc::CameraManager>();
   if (manager_->start() != 0) fail("CameraManager::start failed");
   const auto cams = manager_->cameras();
@@ -343,6 +352,7 @@ std::unique_ptr<FrameSource> open_libcamera_source(const std::string& which,
 }
 
 std::vector<std::string> list_libcamera_cameras() {
+  quiet_libcamera_log();
   lc::CameraManager manager;
   std::vector<std::string> out;
   if (manager.start() != 0) return out;

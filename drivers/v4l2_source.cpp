@@ -492,6 +492,10 @@ SourceCounters V4l2Source::counters() const {
   c.faults = impl_->faults.load(std::memory_order_relaxed);
   c.reopens = impl_->reopens.load(std::memory_order_relaxed);
   c.timeouts = impl_->timeouts.load(std::memory_order_relaxed);
+  // Frames that existed but were never delivered because the reader came late: the stale
+  // ones newest_only skipped, and those the driver dropped for want of a free buffer.
+  c.skipped = impl_->stale_skipped.load(std::memory_order_relaxed) +
+              impl_->kernel_dropped.load(std::memory_order_relaxed);
   return c;
 }
 
@@ -722,6 +726,73 @@ std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Syscalls& sys) {
     out.push_back(std::move(dev));
   }
   return out;
+}
+
+std::string describe_v4l2_devices(const std::vector<V4l2DeviceInfo>& devices) {
+  std::string s;
+  char line[512];
+  int usable_devices = 0;
+  for (const auto& d : devices) {
+    std::snprintf(line, sizeof(line), "%s  %s  (%s%s%s)\n", d.path.c_str(),
+                  d.card.empty() ? "?" : d.card.c_str(), d.driver.empty() ? "?" : d.driver.c_str(),
+                  d.bus.empty() ? "" : ", ", d.bus.c_str());
+    s += line;
+    if (!d.note.empty()) {
+      s += "    skipped: " + d.note + "\n";
+      if (!d.capture) continue;
+    }
+    const V4l2SizeInfo* best = nullptr;
+    const V4l2FormatInfo* best_fmt = nullptr;
+    for (const auto& f : d.formats) {
+      std::snprintf(line, sizeof(line), "    %-4s  %s%s\n", f.fourcc.c_str(), f.description.c_str(),
+                    f.usable ? "" : "  (not decoded by rdslam)");
+      s += line;
+      if (!f.size_range.empty()) s += "          sizes " + f.size_range + "\n";
+      for (const auto& z : f.sizes) {
+        std::string rates;
+        for (double r : z.fps) {
+          std::snprintf(line, sizeof(line), "%s%.4g", rates.empty() ? "" : ", ", r);
+          rates += line;
+        }
+        if (!z.fps_range.empty()) rates = z.fps_range;
+        std::snprintf(line, sizeof(line), "          %5dx%-5d %s%s\n", z.width, z.height,
+                      rates.empty() ? "(rate not reported)" : rates.c_str(),
+                      z.fps.empty() ? "" : " fps");
+        s += line;
+        // Suggest the largest size at >= 30 fps in the preferred format (MJPEG first).
+        const bool fast = !z.fps.empty() && z.fps.front() >= 29.9;
+        const bool better_fmt = !best_fmt || (f.fourcc == "MJPG" && best_fmt->fourcc != "MJPG");
+        if (f.usable && fast &&
+            (better_fmt || (best_fmt == &f && z.width * z.height > best->width * best->height))) {
+          best = &z;
+          best_fmt = &f;
+        }
+      }
+    }
+    bool any_usable = false;
+    for (const auto& f : d.formats) any_usable = any_usable || f.usable;
+    if (d.capture && any_usable) {
+      ++usable_devices;
+      s += "    use: --set source=v4l2:" + d.path;
+      if (best) {
+        std::snprintf(line, sizeof(line),
+                      " --set v4l2.pixel_format=%s --set v4l2.width=%d --set v4l2.height=%d",
+                      best_fmt->fourcc == "MJPG"   ? "mjpeg"
+                      : best_fmt->fourcc == "YUYV" ? "yuyv"
+                                                   : "grey",
+                      best->width, best->height);
+        s += line;
+      }
+      s += "\n";
+    }
+  }
+  if (usable_devices == 0) {
+    s += devices.empty() ? "no V4L2 video devices (/dev/video*) on this machine.\n"
+                         : "no V4L2 device here offers a format rdslam can use.\n";
+    s += "Plug in a USB (UVC) camera, check `ls -l /dev/video*` and that this user is in the "
+         "'video' group; test rigs can load vivid or v4l2loopback (docs/cameras.md).\n";
+  }
+  return s;
 }
 
 }  // namespace rdslam

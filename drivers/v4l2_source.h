@@ -126,5 +126,8 @@ struct V4l2DeviceInfo {
 
 // Queries every /dev/videoN. Start-up/CLI only (allocates).
 std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Syscalls& sys);
+// Human-readable listing (what `rdslam sources` prints), with a ready-to-use --set line per
+// usable device; a clear message when there is none.
+std::string describe_v4l2_devices(const std::vector<V4l2DeviceInfo>& devices);
 
 }  // namespace rdslam

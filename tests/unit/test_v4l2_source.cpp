@@ -298,6 +298,38 @@ TEST_F(V4l2Fake, ListsCaptureNodesWithFormatsSizesAndRates) {
   EXPECT_EQ(cam_.open_fds, 0);
 }
 
+TEST_F(V4l2Fake, DescribeSuggestsTheBestMjpegSizeAndExplainsSkippedNodes) {
+  const std::string text = describe_v4l2_devices(list_v4l2_devices(cam_));
+  EXPECT_NE(text.find("/dev/video0  Fake UVC Camera  (uvcvideo, usb-fake-1)"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("MJPG  Motion-JPEG"), std::string::npos) << text;
+  EXPECT_NE(text.find("640x480 "), std::string::npos) << text;
+  EXPECT_NE(text.find("30, 15 fps"), std::string::npos) << text;
+  EXPECT_NE(text.find("use: --set source=v4l2:/dev/video0 --set v4l2.pixel_format=mjpeg --set "
+                      "v4l2.width=640 --set v4l2.height=480"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("skipped: metadata node, not video"), std::string::npos) << text;
+  EXPECT_EQ(text.find("no V4L2"), std::string::npos) << text;
+}
+
+TEST(V4l2Describe, NoDevicesGivesAClearMessage) {
+  const std::string text = describe_v4l2_devices({});
+  EXPECT_NE(text.find("no V4L2 video devices"), std::string::npos) << text;
+  EXPECT_NE(text.find("USB (UVC) camera"), std::string::npos) << text;
+  V4l2DeviceInfo h264_only;
+  h264_only.path = "/dev/video4";
+  h264_only.capture = true;
+  h264_only.note = "offers no format rdslam decodes (MJPG, YUYV, GREY)";
+  V4l2FormatInfo f;
+  f.fourcc = "H264";
+  f.description = "H.264";
+  h264_only.formats.push_back(f);
+  const std::string t2 = describe_v4l2_devices({h264_only});
+  EXPECT_NE(t2.find("H264  H.264  (not decoded by rdslam)"), std::string::npos) << t2;
+  EXPECT_NE(t2.find("no V4L2 device here offers a format rdslam can use"), std::string::npos) << t2;
+}
+
 // ---- the real kernel: vivid or v4l2loopback, when this machine has one ----
 
 std::string find_kernel_test_device() {
