@@ -40,7 +40,8 @@ bool fits(int64_t size, int32_t stride, int32_t row_bytes, int32_t rows) {
 
 bool parse_bot_core_image(const uint8_t* buf, size_t len, ImageMsgView& out) {
   // hash(8) utime(8) width(4) height(4) row_stride(4) pixelformat(4) size(4) data(size)
-  // nmetadata(4) metadata[...]: the metadata is not needed and not parsed.
+  // nmetadata(4) metadata[nmetadata] {key: int32 length incl. NUL + bytes, n(4), value(n)}.
+  // The metadata is not used, but its bounds are checked: a truncated message is rejected.
   constexpr size_t kHeader = 8 + 8 + 5 * 4;
   if (buf == nullptr || len < kHeader + 4) return false;
   if (be64(buf) != static_cast<uint64_t>(bot_core::image_t::getHash())) return false;
@@ -53,6 +54,22 @@ bool parse_bot_core_image(const uint8_t* buf, size_t len, ImageMsgView& out) {
   if (out.size < 0 || static_cast<size_t>(out.size) > len - kHeader - 4) return false;
   if (out.width <= 0 || out.height <= 0 || out.width > 16384 || out.height > 16384) return false;
   out.data = buf + kHeader;
+  size_t pos = kHeader + static_cast<size_t>(out.size);
+  const int32_t nmeta = be32(buf + pos);
+  pos += 4;
+  if (nmeta < 0) return false;
+  for (int32_t i = 0; i < nmeta; ++i) {
+    if (len - pos < 4) return false;
+    const int32_t key_len = be32(buf + pos);
+    pos += 4;
+    if (key_len < 1 || static_cast<size_t>(key_len) > len - pos) return false;
+    pos += static_cast<size_t>(key_len);
+    if (len - pos < 4) return false;
+    const int32_t n = be32(buf + pos);
+    pos += 4;
+    if (n < 0 || static_cast<size_t>(n) > len - pos) return false;
+    pos += static_cast<size_t>(n);
+  }
   return true;
 }
 

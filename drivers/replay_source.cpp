@@ -106,19 +106,11 @@ int64_t ReplaySource::due_ns(int64_t stamp_ns) const {
 
 SourceStatus ReplaySource::read_paced(Frame& out, int timeout_ms) {
   const int64_t call_ns = clock_.now_ns();
-  if (!started_) {
-    if (!seq_->stamp(0, stamp0_ns_)) {
-      eos_ = true;
-      return SourceStatus::kEndOfStream;
-    }
-    started_ = true;
-    t0_ns_ = call_ns;
-  }
   if (!staged_) {
     // The newest due frame wins: pass over every frame whose successor is already due.
     // Skipped frames are not decoded (a video sequence has to grab them, nothing more).
     int64_t next_stamp = 0;
-    while (seq_->stamp(next_ + 1, next_stamp) && due_ns(next_stamp) <= call_ns) {
+    while (started_ && seq_->stamp(next_ + 1, next_stamp) && due_ns(next_stamp) <= call_ns) {
       ++next_;
       ++counters_.skipped;
     }
@@ -138,6 +130,13 @@ SourceStatus ReplaySource::read_paced(Frame& out, int timeout_ms) {
       return SourceStatus::kFault;
     }
     staged_ = true;
+    if (!started_) {
+      // The schedule starts when the first frame is ready, so it is due at once and its
+      // decoding time does not count as lateness.
+      started_ = true;
+      t0_ns_ = clock_.now_ns();
+      stamp0_ns_ = staged_stamp_ns_;
+    }
   }
   const int64_t due = due_ns(staged_stamp_ns_);
   if (due > clock_.now_ns()) {

@@ -5,7 +5,8 @@
 //  - speed 0: as fast as the reader reads; every frame is delivered, in order. This is the
 //    default of `rdslam replay` and gives reproducible runs.
 //  - speed X > 0 (hardware-in-the-loop): frame i is due at
-//        due_i = t0 + (stamp_i - stamp_0) / X        (t0 = CLOCK_MONOTONIC of the first read)
+//        due_i = t0 + (stamp_i - stamp_0) / X
+//    (t0 = CLOCK_MONOTONIC when the first frame is decoded, during the first read()),
 //    whether or not anyone reads. read() sleeps on an absolute CLOCK_MONOTONIC deadline
 //    (clock_nanosleep TIMER_ABSTIME: no drift accumulates) until the next frame is due.
 //    A reader that comes late gets the NEWEST due frame; the frames passed over are counted
@@ -87,8 +88,8 @@ class ReplaySource : public FrameSource {
   bool eos_ = false;
   // Paced mode.
   bool started_ = false;
-  int64_t t0_ns_ = 0;      // CLOCK_MONOTONIC of the first read
-  int64_t stamp0_ns_ = 0;  // stamp of the first frame
+  int64_t t0_ns_ = 0;      // CLOCK_MONOTONIC when the first frame was ready
+  int64_t stamp0_ns_ = 0;  // stamp of the first delivered frame
   cv::Mat staging_;        // frame `next_`, decoded ahead of its deadline
   bool staged_ = false;
   int64_t staged_stamp_ns_ = 0;

@@ -150,10 +150,14 @@ TEST(ReplayPacing, DecodeHappensBeforeTheDeadlineNotAfterIt) {
   Rig r(1.0, 5, 10 * kMs);
   const int64_t t0 = r.clock.now;
   ASSERT_EQ(r.src->read(r.frame, 1000), SourceStatus::kOk);
-  r.clock.now = t0 + 1 * kMs;
+  // The schedule starts once frame 0 is decoded: it is not late by its decoding time.
+  const int64_t first_due = r.frame.arrival_mono_ns;
+  EXPECT_EQ(first_due, t0 + 10 * kMs);
+  EXPECT_EQ(r.clock.now, first_due);
+  r.clock.now += 1 * kMs;
   ASSERT_EQ(r.src->read(r.frame, 1000), SourceStatus::kOk);
   EXPECT_EQ(r.frame.dataset_index, 1);
-  EXPECT_EQ(r.clock.now, t0 + kPeriod);
+  EXPECT_EQ(r.clock.now, first_due + kPeriod);
   EXPECT_EQ(r.src->counters().skipped, 0u);
 }
 
