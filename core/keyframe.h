@@ -40,7 +40,8 @@ struct KeyframeCandidate {
 struct SlamLink {
   explicit SlamLink(uint32_t ring_capacity) : candidates(ring_capacity) {}
   SpscRing<KeyframeCandidate> candidates;
-  Doorbell bell;
+  Doorbell bell;    // tracker -> mapper: a candidate was queued
+  Doorbell mapped;  // mapper -> tracker: a candidate was processed (sync mode only)
   MatchIndex index;
   std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate
   std::atomic<int> keyframes{0}, points{0};

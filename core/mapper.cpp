@@ -50,7 +50,8 @@ bool Mapper::step(int timeout_ms) {
   link_->mapper_busy.store(1, std::memory_order_relaxed);
   process(*c);
   link_->candidates.pop();
-  link_->mapper_busy.store(0, std::memory_order_relaxed);
+  link_->mapper_busy.store(0, std::memory_order_release);
+  link_->mapped.ring();
   return true;
 }
 

@@ -23,6 +23,8 @@ void TrackerParams::visit(ParamVisitor& v) {
           "frames after which a keyframe is proposed anyway");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
           "lost this long with <= 2 keyframes: re-initialize");
+  v.field("sync_mapper", sync_mapper,
+          "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
   init.visit(init_v);
 }
@@ -266,6 +268,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   for (size_t k = 0; k < init.points.size(); ++k) slot->point_of[init.points[k].feat1] = int64_t(k);
   link_->candidates.commit();
   link_->bell.ring();
+  if (params_.sync_mapper) wait_for_mapper();
 
   cur_.reset_matches(cur_.f.count);
   for (size_t k = 0; k < init.points.size(); ++k) {
@@ -324,6 +327,7 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   const bool few_common = ref_kf_shared_ < params_.m1 ||
                           stats_.inliers < params_.keyframe_overlap_ratio * ref_kf_points_;
   if (!few_common && frames_since_kf_ < params_.max_keyframe_interval) return;
+  if (params_.sync_mapper) wait_for_mapper();
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;  // the mapper has not taken the previous candidate yet
   slot->kind = KeyframeCandidate::Kind::kKeyframe;
@@ -338,6 +342,20 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   link_->bell.ring();
   frames_since_kf_ = 0;
   ++stats_.candidates_sent;
+  if (params_.sync_mapper) wait_for_mapper();
+}
+
+void Tracker::wait_for_mapper() {
+  // Sync mode: block until the ring is empty and the mapper idle (bounded waits, so a
+  // stopped mapper cannot hang the tracker for more than a few seconds).
+  for (int i = 0; i < 50; ++i) {
+    const uint32_t ticket = link_->mapped.ticket();
+    if (link_->candidates.size_approx() == 0 &&
+        link_->mapper_busy.load(std::memory_order_acquire) == 0) {
+      return;
+    }
+    link_->mapped.wait(ticket, 100);
+  }
 }
 
 void Tracker::fill_result(TrackResult& r) const {

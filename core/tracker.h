@@ -51,6 +51,10 @@ struct TrackerParams {
   double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
+  // Lossless replay only: after proposing a keyframe, wait for the mapper to finish it, so a
+  // replay faster than real time maps like an offline run. Off for live cameras: then the
+  // mapper never blocks the tracker for more than the index pointer swap.
+  bool sync_mapper = false;
   InitializerParams init;
 
   void visit(ParamVisitor& v);
@@ -81,6 +85,7 @@ class Tracker {
   void start_from_init(const InitResult& init, const Frame& frame);
   void reset_map();
   void fill_result(TrackResult& r) const;
+  void wait_for_mapper();
 
   TrackerParams params_;
   FeatureParams fparams_;
