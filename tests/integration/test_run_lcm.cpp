@@ -1,0 +1,309 @@
+// `rdslam run` end to end over LCM (issue 9 acceptance):
+// - Debian's lcm-logger records the pose channel while `rdslam run` replays KITTI 06 in
+//   real time; the log, decoded with the generated C++ types, holds one rdslam.pose_t per
+//   processed frame and every pose equals the ground-truth file (pass-through tracker).
+// - A separate Python process (the venv's lcm + the generated Python types) subscribes
+//   while the daemon replays EuRoC, like a robot's consumer would.
+// Each test uses its own ttl=0 URL port, so tests can run in parallel on one host.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/trajectory.h"
+#include "rdslam/pose_t.hpp"
+#include "rdslam/status_t.hpp"
+
+extern char** environ;
+
+namespace {
+
+const std::string kShared = RDSLAM_SHARED_DIR;
+const std::string kBinary = RDSLAM_BINARY;
+
+bool exists(const std::string& p) {
+  struct stat st;
+  return ::stat(p.c_str(), &st) == 0;
+}
+
+std::string find_program(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::stringstream ss(path ? path : "/usr/bin:/bin");
+  for (std::string dir; std::getline(ss, dir, ':');) {
+    const std::string p = dir + "/" + name;
+    if (::access(p.c_str(), X_OK) == 0) return p;
+  }
+  return "";
+}
+
+// Child process with optional stdout/stderr redirected to files.
+struct Child {
+  pid_t pid = -1;
+  bool wait_exit(int timeout_ms, int* status) {
+    for (int i = 0; i < timeout_ms / 10; ++i) {
+      const pid_t r = ::waitpid(pid, status, WNOHANG);
+      if (r == pid) {
+        pid = -1;
+        return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  }
+  void kill_and_reap() {
+    if (pid <= 0) return;
+    ::kill(pid, SIGKILL);
+    int st = 0;
+    ::waitpid(pid, &st, 0);
+    pid = -1;
+  }
+  ~Child() { kill_and_reap(); }
+};
+
+Child spawn(const std::vector<std::string>& args, const std::string& out_path,
+            const std::string& err_path) {
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  if (!out_path.empty()) {
+    posix_spawn_file_actions_addopen(&fa, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  }
+  if (!err_path.empty()) {
+    posix_spawn_file_actions_addopen(&fa, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  }
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  Child c;
+  if (posix_spawn(&c.pid, argv[0], &fa, nullptr, argv.data(), environ) != 0) c.pid = -1;
+  posix_spawn_file_actions_destroy(&fa);
+  return c;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string temp_dir(const std::string& tag) {
+  char tmpl[256];
+  std::snprintf(tmpl, sizeof(tmpl), "/tmp/rdslam_%s_XXXXXX", tag.c_str());
+  const char* d = ::mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+std::vector<std::string> run_args(const std::string& source, const std::string& url,
+                                  const std::string& pose_ch, const std::string& status_ch) {
+  // Built-in defaults (equal to systemd/rdslam.yaml by rule) plus the test's overrides.
+  return {kBinary,       "run",
+          "--set",       "source=" + source,
+          "--set",       "lcm.url=" + url,
+          "--set",       "lcm.pose_channel=" + pose_ch,
+          "--set",       "lcm.status_channel=" + status_ch,
+          "--set",       "pipeline.replay_speed=1",
+          "--log-level", "info"};
+}
+
+TEST(RunLcm, LcmLoggerRecordsOnePosePerProcessedFrameEqualToGroundTruth) {
+  const std::string kitti = kShared + "/data/kitti06_excerpt";
+  if (!exists(kitti + "/poses.txt")) {
+    GTEST_SKIP() << "shared data absent: " << kitti << " (needs ../shared/data)";
+  }
+  const std::string logger = find_program("lcm-logger");
+  ASSERT_FALSE(logger.empty()) << "lcm-logger not found: install liblcm-bin "
+                                  "(toolchain/install-deps.sh)";
+  const std::string url = "udpm://239.255.76.67:7741?ttl=0";
+  const std::string dir = temp_dir("runlcm");
+  const std::string log_path = dir + "/poses.lcmlog";
+
+  Child log =
+      spawn({logger, "-f", "-c", "T1_.*", "--flush-interval=50", "--lcm-url=" + url, log_path},
+            dir + "/logger.out", dir + "/logger.err");
+  ASSERT_GT(log.pid, 0);
+  // Readiness: publish probes until the logger has written one to its file.
+  {
+    lcm::LCM probe(url);
+    ASSERT_TRUE(probe.good());
+    const uint8_t byte = 0;
+    struct stat st {};
+    bool ready = false;
+    for (int i = 0; i < 300 && !ready; ++i) {
+      probe.publish("T1_PROBE", &byte, 1);
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      ready = ::stat(log_path.c_str(), &st) == 0 && st.st_size > 0;
+    }
+    ASSERT_TRUE(ready) << "lcm-logger did not start recording: " << slurp(dir + "/logger.err");
+  }
+
+  Child run = spawn(run_args("kitti:" + kitti, url, "T1_POSE", "T1_STATUS"), "", dir + "/run.err");
+  ASSERT_GT(run.pid, 0);
+  int status = 0;
+  ASSERT_TRUE(run.wait_exit(60000, &status)) << "rdslam run did not finish";
+  const std::string run_err = slurp(dir + "/run.err");
+  ASSERT_TRUE(WIFEXITED(status)) << run_err;
+  ASSERT_EQ(WEXITSTATUS(status), 0) << run_err;
+
+  // Let the logger write the last messages, then stop it the way a user would.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ::kill(log.pid, SIGINT);
+  int log_status = 0;
+  ASSERT_TRUE(log.wait_exit(10000, &log_status));
+
+  lcm::LogFile lf(log_path, "r");
+  ASSERT_TRUE(lf.good());
+  std::map<int64_t, rdslam::pose_t> poses;  // by seq
+  int pose_msgs = 0;
+  rdslam::status_t last_status;
+  int status_msgs = 0;
+  for (const lcm::LogEvent* ev = lf.readNextEvent(); ev; ev = lf.readNextEvent()) {
+    if (ev->channel == "T1_POSE") {
+      rdslam::pose_t m;
+      ASSERT_GT(m.decode(ev->data, 0, ev->datalen), 0);
+      poses[m.seq] = m;
+      ++pose_msgs;
+    } else if (ev->channel == "T1_STATUS") {
+      ASSERT_GT(last_status.decode(ev->data, 0, ev->datalen), 0);
+      ++status_msgs;
+    }
+  }
+  ASSERT_GE(status_msgs, 1) << "the final status is always published";
+  // One message per processed frame, no duplicates.
+  EXPECT_EQ(pose_msgs, static_cast<int>(poses.size()));
+  EXPECT_EQ(pose_msgs, static_cast<int>(last_status.frames_processed)) << run_err;
+  EXPECT_EQ(last_status.frames_captured, 51);
+  EXPECT_EQ(last_status.frames_processed + last_status.frames_dropped, 51);
+  std::printf("[ measured ] KITTI 06 real-time replay: %d poses logged, %lld dropped\n", pose_msgs,
+              static_cast<long long>(last_status.frames_dropped));
+
+  const rdslam::Trajectory gt =
+      rdslam::read_trajectory(kitti + "/poses.txt", rdslam::TrajectoryFormat::kKitti);
+  ASSERT_EQ(gt.size(), 51u);
+  for (const auto& [seq, m] : poses) {
+    ASSERT_GE(seq, 0);
+    ASSERT_LT(seq, 51);
+    const rdslam::StampedPose& g = gt[static_cast<size_t>(seq)];
+    EXPECT_EQ(m.state, int8_t{rdslam::pose_t::STATE_TRACKING}) << seq;
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(m.position[i], g.p_world_cam[i], 1e-9) << seq;
+    Eigen::Quaterniond q(m.orientation[0], m.orientation[1], m.orientation[2], m.orientation[3]);
+    EXPECT_NEAR(q.angularDistance(g.q_world_cam), 0.0, 1e-9) << seq;
+    EXPECT_GE(m.latency_us, 0);
+  }
+}
+
+TEST(RunLcm, SeparatePythonProcessSubscribesWhileThePipelineRuns) {
+  const std::string euroc = kShared + "/data/euroc_V1_01_micro";
+  if (!exists(euroc + "/mav0/cam0/data.csv")) {
+    GTEST_SKIP() << "shared data absent: " << euroc << " (needs ../shared/data)";
+  }
+  const std::string python = std::string(RDSLAM_SOURCE_DIR) + "/.venv/bin/python";
+  ASSERT_TRUE(exists(python)) << "Python venv missing: run toolchain/install-deps.sh";
+  const std::string url = "udpm://239.255.76.67:7742?ttl=0";
+  const std::string dir = temp_dir("runpy");
+  const std::string script = dir + "/subscriber.py";
+  {
+    std::ofstream py(script);
+    py << R"PY(import os, sys, time
+sys.path.insert(0, sys.argv[1])
+import lcm
+from rdslam import pose_t, status_t
+url, ready_path = sys.argv[2], sys.argv[3]
+lc = lcm.LCM(url)
+got = {"poses": 0, "tracking": 0, "seqs": [], "processed": -1, "running_reports": 0}
+def on_pose(ch, data):
+    m = pose_t.decode(data)
+    got["poses"] += 1
+    got["seqs"].append(m.seq)
+    if m.state == pose_t.STATE_TRACKING:
+        got["tracking"] += 1
+def on_status(ch, data):
+    m = status_t.decode(data)
+    got["processed"] = m.frames_processed
+    got["running_reports"] += 1
+lc.subscribe("T2_POSE", on_pose)
+lc.subscribe("T2_STATUS", on_status)
+open(ready_path, "w").close()
+deadline = time.time() + 60
+last = time.time()
+while time.time() < deadline:
+    if lc.handle_timeout(100) > 0:
+        last = time.time()
+    elif got["poses"] > 0 and time.time() - last > 1.5:
+        break
+inorder = all(b > a for a, b in zip(got["seqs"], got["seqs"][1:]))
+print(got["poses"], got["tracking"], got["processed"], int(inorder), got["running_reports"])
+)PY";
+  }
+  const std::string ready = dir + "/ready";
+  Child sub =
+      spawn({python, script, RDSLAM_LCM_PY_DIR, url, ready}, dir + "/sub.out", dir + "/sub.err");
+  ASSERT_GT(sub.pid, 0);
+  for (int i = 0; i < 1000 && !exists(ready); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(exists(ready)) << "subscriber did not start: " << slurp(dir + "/sub.err");
+
+  Child run = spawn(run_args("euroc:" + euroc, url, "T2_POSE", "T2_STATUS"), "", dir + "/run.err");
+  int status = 0;
+  ASSERT_TRUE(run.wait_exit(60000, &status));
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << slurp(dir + "/run.err");
+  int sub_status = 0;
+  ASSERT_TRUE(sub.wait_exit(30000, &sub_status));
+  ASSERT_TRUE(WIFEXITED(sub_status) && WEXITSTATUS(sub_status) == 0) << slurp(dir + "/sub.err");
+
+  std::istringstream out(slurp(dir + "/sub.out"));
+  int poses = -1, tracking = -1, processed = -1, inorder = 0, reports = 0;
+  out >> poses >> tracking >> processed >> inorder >> reports;
+  EXPECT_EQ(poses, processed) << "one pose per processed frame reached the subscriber";
+  EXPECT_EQ(tracking, poses) << "every EuRoC frame has ground truth";
+  EXPECT_GE(poses, 1);
+  EXPECT_EQ(inorder, 1) << "sequence numbers strictly increasing";
+  EXPECT_GE(reports, 2) << "1 Hz status during a 4.7 s replay, plus the final one";
+  std::printf("[ measured ] EuRoC real-time replay: subscriber got %d poses of %d processed\n",
+              poses, processed);
+}
+
+// The daemon on a long recording (80 s of video): SIGTERM, as systemd sends it, stops every
+// thread within 2 s and the process exits 0.
+TEST(RunLcm, SigtermStopsTheDaemonCleanlyWithinTwoSeconds) {
+  const std::string video = kShared + "/data/opencv_vtest/vtest.avi";
+  if (!exists(video)) GTEST_SKIP() << "shared data absent: " << video;
+  const std::string dir = temp_dir("runterm");
+  Child run =
+      spawn(run_args("video:" + video, "udpm://239.255.76.67:7743?ttl=0", "T3_POSE", "T3_STATUS"),
+            "", dir + "/run.err");
+  ASSERT_GT(run.pid, 0);
+  // Running: the first periodic stats line has been logged.
+  bool running = false;
+  for (int i = 0; i < 3000 && !running; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    running = slurp(dir + "/run.err").find("stats: ") != std::string::npos;
+  }
+  ASSERT_TRUE(running) << slurp(dir + "/run.err");
+  ::kill(run.pid, SIGTERM);
+  int status = 0;
+  const bool exited = run.wait_exit(2000, &status);
+  const std::string err = slurp(dir + "/run.err");
+  ASSERT_TRUE(exited) << "rdslam run did not stop within 2 s of SIGTERM\n" << err;
+  ASSERT_TRUE(WIFEXITED(status)) << err;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << err;
+  EXPECT_NE(err.find("SIGTERM received"), std::string::npos) << err;
+  EXPECT_NE(err.find("run: stopped after"), std::string::npos) << err;
+}
+
+}  // namespace
