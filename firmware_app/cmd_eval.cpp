@@ -2,6 +2,7 @@
 // truth (core/trajectory_eval.h), as text or JSON, with an optional PNG plot.
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "core/trajectory.h"
@@ -146,7 +147,10 @@ int cmd_eval(int argc, char** argv) {
         .end_object()
         .value("gt_path_length_m", r.gt_path_length_m)
         .value("ate_rmse_m", r.ate_m.rmse)
-        .value("ate_rmse_pct_path", r.ate_pct_path.rmse);
+        // A ground truth that never moves has no path to relate the error to: null.
+        .value("ate_rmse_pct_path", r.gt_path_length_m > 0.0
+                                        ? std::optional<double>(r.ate_pct_path.rmse)
+                                        : std::nullopt);
     json_stats(w, "ate_m", r.ate_m);
     json_stats(w, "ate_pct_path", r.ate_pct_path);
     w.value("rpe_delta_frames", params.rpe_delta);
