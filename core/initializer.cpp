@@ -36,7 +36,7 @@ void InitializerParams::visit(ParamVisitor& v) {
   v.field("min_matches", min_matches, 10, 10000, "matches to the reference frame needed");
   v.field("search_radius_frac", search_radius_frac, 0.01, 1.0,
           "match window radius, fraction of image width");
-  v.field("min_median_flow_px", min_median_flow_px, 0.0, 1.0,
+  v.field("min_median_flow_frac", min_median_flow_frac, 0.0, 1.0,
           "motion gate: median match displacement, fraction of image width");
   v.field("homography_ratio", homography_ratio, 0.0, 1.0,
           "R_H = S_H/(S_H+S_E) above this selects the homography");
@@ -212,7 +212,7 @@ InitStatus Initializer::add_frame(const Features& cur, int64_t stamp_ns, InitRes
   std::nth_element(flow.begin(), flow.begin() + flow.size() / 2, flow.end());
   // Motion gate: most of the scene must move in the image (camera motion, not noise or a few
   // moving objects).
-  if (flow[flow.size() / 2] < params_.min_median_flow_px * cur.width) {
+  if (flow[flow.size() / 2] < params_.min_median_flow_frac * cur.width) {
     return InitStatus::kLittleMotion;
   }
   const cv::Matx33d Kcv(K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1);

@@ -4,7 +4,7 @@
 // The first frame with enough features becomes the reference. Each later frame is matched to
 // it (window search, ratio test, mutual best). Then, in order:
 //  1. Motion gate: the median image displacement of the matches must exceed
-//     `min_median_flow_px`. A camera at rest, or a fixed camera watching people walk (most
+//     `min_median_flow_frac`. A camera at rest, or a fixed camera watching people walk (most
 //     matches on the static background), never passes, so noise and moving objects cannot
 //     create a map.
 //  2. Both models are fitted with RANSAC: the essential matrix (five-point, Nister) and a
@@ -36,16 +36,16 @@
 namespace rdslam {
 
 struct InitializerParams {
-  int min_features = 100;            // frames with fewer features are not used
-  int min_matches = 100;             // matches to the reference; fewer resets the reference
-  double search_radius_frac = 0.15;  // window radius as a fraction of the image width
-  double min_median_flow_px = 0.01;  // as a fraction of the image width (motion gate)
-  double homography_ratio = 0.45;    // R_H above this selects the homography
-  double min_parallax_deg = 1.0;     // parallax gate
-  double parallax_quantile = 0.5;    // which triangulation angle must exceed it (0.5: median)
-  double min_inlier_fraction = 0.6;  // of matches, consistent with the chosen motion
-  int min_points = 80;               // triangulated points needed
-  int max_reference_age = 60;        // frames; then the reference is renewed
+  int min_features = 100;              // frames with fewer features are not used
+  int min_matches = 100;               // matches to the reference; fewer resets the reference
+  double search_radius_frac = 0.15;    // window radius as a fraction of the image width
+  double min_median_flow_frac = 0.01;  // as a fraction of the image width (motion gate)
+  double homography_ratio = 0.45;      // R_H above this selects the homography
+  double min_parallax_deg = 1.0;       // parallax gate
+  double parallax_quantile = 0.5;      // which triangulation angle must exceed it (0.5: median)
+  double min_inlier_fraction = 0.6;    // of matches, consistent with the chosen motion
+  int min_points = 80;                 // triangulated points needed
+  int max_reference_age = 60;          // frames; then the reference is renewed
 
   void visit(ParamVisitor& v);
 };
