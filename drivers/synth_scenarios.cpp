@@ -234,7 +234,7 @@ light:
   period_s: 5.0
   cone_deg: 10
   edge_deg: 6
-  intensity: 9.0
+  intensity: 14.0
   start: 30
 exposure: [[0, 1.0], [100, 1.0], [120, 0.75], [180, 0.75], [200, 1.2], [250, 1.2], [270, 1.0]]
 )")},
