@@ -67,6 +67,13 @@ class DebPackage : public ::testing::Test {
   }
   // Builds the .deb once per process (ctest runs each test in its own); returns its path
   // (empty on failure).
+  // The .deb's layout (and its conffile, maintainer scripts) assume the /usr prefix, which
+  // a fresh build directory gets by default (cmake/packaging.cmake). Older build
+  // directories keep a cached /usr/local: reported as skipped with the fix, not as a pass.
+  static bool usr_prefix() {
+    return std::regex_search(read_text(build_ / "CMakeCache.txt"),
+                             std::regex("\nCMAKE_INSTALL_PREFIX:PATH=/usr\n"));
+  }
   static fs::path deb() {
     if (!deb_.empty() || built_) return deb_;
     built_ = true;
@@ -95,10 +102,10 @@ std::string DebPackage::cpack_log_;
 
 TEST_F(DebPackage, BuildsWithFilesInFhsPlacesAndRealDepends) {
   ASSERT_FALSE(build_.empty()) << "no CMakeCache.txt above " << RDSLAM_BINARY;
-  const std::string prefix = read_text(build_ / "CMakeCache.txt");
-  ASSERT_TRUE(std::regex_search(prefix, std::regex("\nCMAKE_INSTALL_PREFIX:PATH=/usr\n")))
-      << "this build directory installs elsewhere than /usr; the .deb needs /usr: "
-         "reconfigure with -DCMAKE_INSTALL_PREFIX=/usr (the default of a fresh build)";
+  if (!usr_prefix()) {
+    GTEST_SKIP() << "this build directory installs elsewhere than /usr; the .deb needs /usr: "
+                    "reconfigure with -DCMAKE_INSTALL_PREFIX=/usr (the default of a fresh build)";
+  }
   const fs::path d = deb();
   ASSERT_FALSE(d.empty()) << "cpack -G DEB failed:\n" << cpack_log_;
 
@@ -163,6 +170,11 @@ TEST_F(DebPackage, BuildsWithFilesInFhsPlacesAndRealDepends) {
 }
 
 TEST_F(DebPackage, InstallsIntoAScratchRootAndPurges) {
+  ASSERT_FALSE(build_.empty()) << "no CMakeCache.txt above " << RDSLAM_BINARY;
+  if (!usr_prefix()) {
+    GTEST_SKIP() << "this build directory installs elsewhere than /usr; the .deb needs /usr: "
+                    "reconfigure with -DCMAKE_INSTALL_PREFIX=/usr (the default of a fresh build)";
+  }
   const fs::path d = deb();
   ASSERT_FALSE(d.empty()) << "cpack -G DEB failed:\n" << cpack_log_;
   // The host must not learn about rdslam (compared as entries, not whole files: another
