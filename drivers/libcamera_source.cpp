@@ -29,7 +29,11 @@ constexpr int kMaxRequests = 16;
 // interleave with rdslam's journald-formatted log; keep its errors only, unless the user
 // asked for more with libcamera's own LIBCAMERA_LOG_LEVELS.
 void quiet_libcamera_log() {
-  if (!std::getenv("LIBCAMERA_LOG_LEVELS")) lc::logSetLevel("*", "ERROR");
+  if (std::getenv("LIBCAMERA_LOG_LEVELS")) return;
+  // The environment is read when libcamera's logger starts (categories registered later do
+  // not see logSetLevel); set both so either order works. Capture/start-up thread only.
+  setenv("LIBCAMERA_LOG_LEVELS", "*:ERROR", 0);
+  lc::logSetLevel("*", "ERROR");
 }  // LibcameraParams::buffers is limited to this
 
 struct Candidate {
