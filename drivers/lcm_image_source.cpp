@@ -113,6 +113,7 @@ void LcmImageSource::on_message(const lcm::ReceiveBuffer* rbuf, const std::strin
 }
 
 SourceStatus LcmImageSource::read(Frame& out, int timeout_ms) {
+  const uint64_t faults_before = counters_.faults;
   if (!has_pending_) {
     const int rc = lcm_.handleTimeout(timeout_ms < 0 ? 0 : timeout_ms);
     if (rc < 0) {
@@ -127,7 +128,12 @@ SourceStatus LcmImageSource::read(Frame& out, int timeout_ms) {
   // Drain what is already queued so the newest image is delivered.
   while (lcm_.handleTimeout(0) > 0) {
   }
-  if (!has_pending_) return SourceStatus::kFault;  // only invalid messages arrived (counted)
+  if (!has_pending_) {
+    // Only invalid messages arrived (counted by the handler), or nothing for this channel.
+    if (counters_.faults != faults_before) return SourceStatus::kFault;
+    ++counters_.timeouts;
+    return SourceStatus::kTimeout;
+  }
   has_pending_ = false;
   const SourceStatus st = convert(pending_, out.image);
   if (st != SourceStatus::kOk) {
