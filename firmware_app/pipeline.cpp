@@ -270,6 +270,8 @@ void Pipeline::capture_loop() {
     if (st == SourceStatus::kOk) {
       if (f.arrival_mono_ns == 0) f.arrival_mono_ns = t1;
       capture_hist_.record_ns(t1 - t0);
+      // The source's own skips (a paced replay that fell behind) complete the books.
+      source_skipped_.store(source_.counters().skipped, std::memory_order_relaxed);
       captured_.fetch_add(1, std::memory_order_release);
       frames_.try_push(slot);  // cannot fail: room for every slot + end of stream
       frames_bell_.ring();
@@ -482,6 +484,7 @@ void Pipeline::build_status(PipelineStatus& s, int64_t now_ns, bool final_report
   s.frames_dropped = s.dropped_capture + s.dropped_tracker;
   s.source_faults = source_faults_.load(std::memory_order_relaxed);
   s.source_timeouts = source_timeouts_.load(std::memory_order_relaxed);
+  s.source_skipped = source_skipped_.load(std::memory_order_relaxed);
   s.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
   s.frames_published = published_.load(std::memory_order_acquire);
   s.last_seq = last_seq_.load(std::memory_order_relaxed);
@@ -515,7 +518,8 @@ void Pipeline::publish_status(int64_t now_ns, bool final_report) {
                      static_cast<unsigned long long>(s.frames_dropped),
                      static_cast<unsigned long long>(s.dropped_capture),
                      static_cast<unsigned long long>(s.dropped_tracker));
-  n += std::snprintf(line + n, sizeof(line) - n, " faults %llu overflows %llu",
+  n += std::snprintf(line + n, sizeof(line) - n, " source skipped %llu faults %llu overflows %llu",
+                     static_cast<unsigned long long>(s.source_skipped),
                      static_cast<unsigned long long>(s.source_faults),
                      static_cast<unsigned long long>(s.publish_overflows));
   n += std::snprintf(line + n, sizeof(line) - n,
@@ -541,6 +545,7 @@ PipelineCounters Pipeline::counters() const {
   c.dropped_tracker = dropped_tracker_.load(std::memory_order_relaxed);
   c.source_faults = source_faults_.load(std::memory_order_relaxed);
   c.source_timeouts = source_timeouts_.load(std::memory_order_relaxed);
+  c.source_skipped = source_skipped_.load(std::memory_order_relaxed);
   c.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
   return c;
 }

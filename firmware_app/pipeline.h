@@ -80,6 +80,7 @@ struct PipelineStatus {
   uint64_t dropped_tracker = 0;  // skipped by the tracker: a newer frame was queued
   uint64_t source_faults = 0;
   uint64_t source_timeouts = 0;
+  uint64_t source_skipped = 0;     // passed over by a paced replay source that fell behind
   uint64_t publish_overflows = 0;  // results lost because the publisher ring was full
   uint64_t frames_published = 0;   // results handed to the sinks
   uint64_t last_seq = 0;           // seq of the last processed frame
@@ -98,6 +99,7 @@ struct PipelineCounters {
   uint64_t dropped_tracker = 0;
   uint64_t source_faults = 0;
   uint64_t source_timeouts = 0;
+  uint64_t source_skipped = 0;
   uint64_t publish_overflows = 0;
 };
 
@@ -226,6 +228,7 @@ class Pipeline {
   std::atomic<uint64_t> dropped_tracker_{0};
   std::atomic<uint64_t> source_faults_{0};
   std::atomic<uint64_t> source_timeouts_{0};
+  std::atomic<uint64_t> source_skipped_{0};  // copied from FrameSource::counters()
   std::atomic<uint64_t> publish_overflows_{0};
   std::atomic<uint64_t> last_seq_{0};
   std::atomic<int> last_state_{0};
