@@ -2,8 +2,6 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
-#include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 
 namespace rdslam {
 
@@ -76,35 +74,28 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
   return st;
 }
 
-PoseEstimator::PoseEstimator(const PinholeIntrinsics& K, int max_correspondences, uint64_t seed)
-    : K_(K), max_n_(max_correspondences), seed_(seed) {}
+PoseEstimator::PoseEstimator(const ParsacParams& params, const CameraModel& camera,
+                             int max_correspondences)
+    : K_{camera.fx, camera.fy, camera.cx, camera.cy},
+      max_n_(max_correspondences),
+      robust_(params, camera, max_correspondences) {}
 
 int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs,
-                            const float* sigma_px, int n, Pose& T, uint8_t* inlier) {
+                            const float* sigma_px, int n, Pose& T, uint8_t* inlier,
+                            const Pose* guess) {
   if (n < 6) return 0;
   n = std::min(n, max_n_);
-  // Adapter: OpenCV P3P-family RANSAC until core/parsac.h lands (issue 6).
-  std::vector<cv::Point3f> obj(n);
-  std::vector<cv::Point2f> img(n);
-  for (int i = 0; i < n; ++i) {
-    obj[i] = cv::Point3f(float(p_world[i].x()), float(p_world[i].y()), float(p_world[i].z()));
-    img[i] = cv::Point2f(float(obs[i].x()), float(obs[i].y()));
+  Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
+  if (guess) {
+    g.linear() = guess->R;
+    g.translation() = guess->t;
   }
-  const cv::Matx33d Kcv(K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1);
-  cv::Mat rvec, tvec;
-  std::vector<int> idx;
-  cv::theRNG().state = seed_;
-  const bool ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, 300, 4.0,
-                                     0.99, idx, cv::SOLVEPNP_AP3P);
-  if (!ok || static_cast<int>(idx.size()) < 6) return 0;
-  cv::Mat Rcv;
-  cv::Rodrigues(rvec, Rcv);
-  Eigen::Matrix3d R;
-  cv::cv2eigen(Rcv, R);
-  T.R = R;
-  T.t = Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-  const PoseRefineStats st = refine_pose(K_, p_world, obs, sigma_px, n, T, inlier);
-  return st.inliers;
+  PoseEstimate res;
+  const PoseStatus st = robust_.estimate(obs, p_world, n, guess ? &g : nullptr, inlier, &res);
+  if (st != PoseStatus::kOk) return 0;
+  T.R = res.T_cam_world.linear();
+  T.t = res.T_cam_world.translation();
+  return refine_pose(K_, p_world, obs, sigma_px, n, T, inlier).inliers;
 }
 
 }  // namespace rdslam

@@ -4,8 +4,8 @@
 // (several rounds, re-classifying each round), plus a minimal-sample robust estimator for
 // when no pose prior exists (relocalization).
 //
-// The robust estimator is an adapter: it uses OpenCV's P3P RANSAC until core/parsac.h (the
-// paper's PARSAC, another module) is available; switching is one line in the .cpp.
+// The robust estimator is an adapter over core/parsac.h (the paper's PARSAC, Sec. 5, or its
+// baselines by `parsac.method`), followed by the eq. (1) refinement with per-feature noise.
 //
 // Ownership: PoseEstimator owns its scratch buffers, sized at construction.
 // Threads: one instance per thread (the tracker owns one).
@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/geometry.h"
+#include "core/parsac.h"
 
 namespace rdslam {
 
@@ -34,16 +35,18 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
 
 class PoseEstimator {
  public:
-  PoseEstimator(const PinholeIntrinsics& K, int max_correspondences, uint64_t seed = 1);
-  // Robust pose without prior (minimal samples + refinement). Returns the inlier count
-  // (0 on failure). Relocalization only: the OpenCV fallback allocates.
+  PoseEstimator(const ParsacParams& params, const CameraModel& camera, int max_correspondences);
+  // Robust pose (minimal samples, then eq. (1)). `guess` (optional) is the motion-model
+  // prediction. Returns the inlier count (0 on failure). Does not allocate (parsac, arsac,
+  // ransac, lo-ransac).
   int estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs, const float* sigma_px,
-               int n, Pose& T_cam_world, uint8_t* inlier);
+               int n, Pose& T_cam_world, uint8_t* inlier, const Pose* guess = nullptr);
+  void reset_prior() { robust_.reset_prior(); }
 
  private:
   PinholeIntrinsics K_;
   int max_n_;
-  uint64_t seed_;
+  RobustPoseEstimator robust_;
 };
 
 }  // namespace rdslam

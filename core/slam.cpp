@@ -16,7 +16,8 @@ double thread_cpu_ms() {
 class TrackerStageImpl : public TrackerStage {
  public:
   TrackerStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
-      : tracker_(p.tracker, p.features, p.mapper.ba, cam, std::move(link), p.mapper.max_points) {}
+      : tracker_(p.tracker, p.features, p.mapper.ba, p.parsac, cam, std::move(link),
+                 p.mapper.max_points) {}
   TrackResult track(const Frame& frame) override { return tracker_.track(frame); }
 
  private:
@@ -58,7 +59,7 @@ SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera)
 OfflineRun run_offline(FrameSource& source, const SlamParams& params, const CameraModel& camera,
                        int max_frames, const std::function<void(const OfflineFrame&)>& on_frame) {
   auto link = std::make_shared<SlamLink>(kCandidateSlots);
-  Tracker tracker(params.tracker, params.features, params.mapper.ba, camera, link,
+  Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, camera, link,
                   params.mapper.max_points);
   Mapper mapper(params.mapper, params.features, camera, link);
   OfflineRun run;

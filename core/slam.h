@@ -29,6 +29,7 @@ struct SlamParams {
   FeatureParams features;
   TrackerParams tracker;
   MapperParams mapper;
+  ParsacParams parsac;  // config section `parsac` (core/parsac.h), copied in by the caller
   // Cross-section checks; empty when valid.
   std::string validate() const;
 };

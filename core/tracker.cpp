@@ -23,6 +23,8 @@ void TrackerParams::visit(ParamVisitor& v) {
           "frames after which a keyframe is proposed anyway");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
           "lost this long with <= 2 keyframes: re-initialize");
+  v.field("robust_per_frame", robust_per_frame,
+          "robust pose (parsac.method) on every frame before the eq. (1) refinement");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -36,8 +38,8 @@ void Tracker::FrameState::reset_matches(int n) {
 }
 
 Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
-                 const BundleAdjustmentParams& ba, const CameraModel& camera,
-                 std::shared_ptr<SlamLink> link, int max_points)
+                 const BundleAdjustmentParams& ba, const ParsacParams& parsac,
+                 const CameraModel& camera, std::shared_ptr<SlamLink> link, int max_points)
     : params_(params),
       fparams_(features),
       camera_(camera),
@@ -45,7 +47,7 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
       link_(std::move(link)),
       extractor_(features, camera),
       initializer_(params.init, features, K_, ba),
-      estimator_(K_, features.max_features + 64) {
+      estimator_(parsac, camera, features.max_features + 64) {
   const size_t cap = static_cast<size_t>(features.max_features) + 64;
   for (FrameState* s : {&cur_, &last_}) {
     s->pid.assign(cap, -1);
@@ -213,6 +215,33 @@ int Tracker::optimise(Pose& T) {
   return st.inliers;
 }
 
+int Tracker::robust_optimise(Pose& T, const Pose& guess) {
+  // Sec. 3/5: PARSAC over the frame's matches, seeded with the motion-model prediction; its
+  // outliers are dropped, then eq. (1) refines over the rest.
+  int n = 0;
+  for (int j = 0; j < cur_.f.count; ++j) {
+    if (cur_.pid[j] < 0) continue;
+    corr_p_[n] = cur_.p[j];
+    corr_x_[n] = Eigen::Vector2d(cur_.f.un[j].x, cur_.f.un[j].y);
+    corr_s_[n] = cur_.f.scale[j];
+    corr_feat_[n] = j;
+    ++n;
+  }
+  Pose Tr = guess;
+  const int inl = estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), n, Tr,
+                                      corr_inl_.data(), &guess);
+  if (inl < 10) return optimise(T);  // no model: refine from the prediction
+  for (int k = 0; k < n; ++k) {
+    if (corr_inl_[k]) continue;
+    const int j = corr_feat_[k];
+    cur_.pid[j] = -1;
+    cur_.row[j] = -1;
+    cur_.best_dist[j] = 1e30f;
+  }
+  T = Tr;
+  return inl;
+}
+
 bool Tracker::relocalize() {
   if (!snap_ || snap_->rows() < params_.reloc_min_inliers) return false;
   const int n = global_match(cur_.f, *snap_, fparams_, reloc_pairs_.data(),
@@ -228,6 +257,7 @@ bool Tracker::relocalize() {
     ++m;
   }
   Pose T;
+  estimator_.reset_prior();  // the previous frames' bin prior says nothing about this view
   const int inl =
       estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), m, T, corr_inl_.data());
   if (inl < 10) return false;
@@ -414,7 +444,7 @@ TrackResult Tracker::track(const Frame& frame) {
     Pose T = Tpred;
     int inl = 0;
     int nm = have_last_ ? match_motion(Tpred, params_.motion_search_px) : 0;
-    if (nm >= 15) inl = optimise(T);
+    if (nm >= 15) inl = params_.robust_per_frame ? robust_optimise(T, Tpred) : optimise(T);
     if (inl < 15 && have_last_) {
       // Sudden motion change: widen the window around the prediction.
       cur_.reset_matches(cur_.f.count);

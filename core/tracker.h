@@ -55,6 +55,9 @@ struct TrackerParams {
   // replay faster than real time maps like an offline run. Off for live cameras: then the
   // mapper never blocks the tracker for more than the index pointer swap.
   bool sync_mapper = false;
+  // Sec. 3/5: robust pose (PARSAC, `parsac.method`) on the frame's 2D-3D matches before the
+  // eq. (1) refinement; false: refinement from the motion-model prediction only.
+  bool robust_per_frame = true;
   InitializerParams init;
 
   void visit(ParamVisitor& v);
@@ -69,7 +72,7 @@ struct TrackerStats {
 class Tracker {
  public:
   Tracker(const TrackerParams& params, const FeatureParams& features,
-          const BundleAdjustmentParams& ba, const CameraModel& camera,
+          const BundleAdjustmentParams& ba, const ParsacParams& parsac, const CameraModel& camera,
           std::shared_ptr<SlamLink> link, int max_points);
   TrackResult track(const Frame& frame);
   const TrackerStats& stats() const { return stats_; }
@@ -80,6 +83,7 @@ class Tracker {
   int match_motion(const Pose& T, double radius);
   int match_local_map(const Pose& T, double radius);
   int optimise(Pose& T);
+  int robust_optimise(Pose& T, const Pose& guess);
   bool relocalize();
   void maybe_send_keyframe(const Frame& frame);
   void start_from_init(const InitResult& init, const Frame& frame);

@@ -80,6 +80,7 @@ int cmd_replay(int argc, char** argv) {
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
   // Lossless replay maps like an offline run: the tracker waits for each keyframe.
   if (!realtime) cfg.slam.tracker.sync_mapper = true;
+  cfg.slam.parsac = cfg.parsac;
   SlamStages stages = make_slam_stages(cfg.slam, camera);
 
   PipelineOptions options;

@@ -146,7 +146,9 @@ inline SlamParams params_from_env() {
       start = comma + 1;
     }
   }
-  return load_config("", overrides).slam;
+  AppConfig cfg = load_config("", overrides);
+  cfg.slam.parsac = cfg.parsac;
+  return cfg.slam;
 }
 
 }  // namespace rdslam::test

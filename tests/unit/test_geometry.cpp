@@ -100,7 +100,11 @@ TEST(PoseEstimator, RecoversPoseWithoutPrior) {
     obs[i] = kK.project(pc);
     if (i % 3 == 0) obs[i] = Eigen::Vector2d(px(rng), px(rng) * 0.75);
   }
-  PoseEstimator est(kK, n);
+  CameraModel cam;
+  cam.fx = cam.fy = 500;
+  cam.cx = 320;
+  cam.cy = 240;
+  PoseEstimator est(ParsacParams{}, cam, n);
   Pose T;
   const int inliers = est.estimate(pw.data(), obs.data(), sig.data(), n, T, inl.data());
   EXPECT_GE(inliers, 75);
