@@ -87,12 +87,20 @@ LcmImageSource::LcmImageSource(std::string uri, std::string channel, const std::
   // Worst case payload: uncompressed BGR with some row padding. Reserved now so that the
   // handler does not grow the buffer while frames flow.
   pending_bytes_.reserve(static_cast<size_t>(width) * height * 4);
-  lcm_.subscribe(channel_, &LcmImageSource::on_message, this);
+  if (lcm_subscribe(lcm_.getUnderlyingLCM(), channel_.c_str(), &LcmImageSource::on_message_c,
+                    this) == nullptr) {
+    throw std::runtime_error(info_.uri + ": cannot subscribe to channel " + channel_);
+  }
 }
 
-void LcmImageSource::on_message(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+void LcmImageSource::on_message_c(const lcm_recv_buf_t* rbuf, const char*, void* self) {
+  static_cast<LcmImageSource*>(self)->on_message(static_cast<const uint8_t*>(rbuf->data),
+                                                 rbuf->data_size);
+}
+
+void LcmImageSource::on_message(const uint8_t* data, size_t size) {
   ImageMsgView m;
-  if (!parse_bot_core_image(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, m)) {
+  if (!parse_bot_core_image(data, size, m)) {
     ++counters_.faults;
     if (!warned_) {
       RDSLAM_LOG_WARN(

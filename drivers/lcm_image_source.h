@@ -48,7 +48,10 @@ class LcmImageSource : public FrameSource {
   SourceCounters counters() const override { return counters_; }
 
  private:
-  void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  // C-API handler (lcm_subscribe): LCM's C++ template wrapper casts through void* in a way
+  // UBSan's vptr check rejects; the C callback with `this` as user data is exact.
+  static void on_message_c(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  void on_message(const uint8_t* data, size_t size);
   SourceStatus convert(const ImageMsgView& m, cv::Mat& out);
 
   SourceInfo info_;
