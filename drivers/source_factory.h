@@ -10,6 +10,8 @@
 #include <string>
 
 #include "drivers/frame_source.h"
+#include "drivers/libcamera_source.h"
+#include "drivers/v4l2_source.h"
 
 namespace rdslam {
 
@@ -25,6 +27,9 @@ struct SourceOptions {
   double kitti_rate_hz = 10.0;
   // lcm: source URL (ttl=0 keeps traffic on this host).
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
+  // Live cameras: the config's v4l2 / libcamera sections (copy AppConfig::v4l2/libcamera).
+  V4l2Params v4l2;
+  LibcameraParams libcamera;
 };
 
 std::unique_ptr<FrameSource> open_source(const std::string& uri, const SourceOptions& options);

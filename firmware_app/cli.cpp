@@ -138,6 +138,18 @@ std::string ArgParser::help() const {
   return out;
 }
 
+SourceOptions make_source_options(const AppConfig& cfg, const std::vector<std::string>& overrides,
+                                  double speed) {
+  SourceOptions so;
+  so.speed = speed;
+  so.config_camera = cfg.camera;
+  so.camera_overridden = overrides_camera(overrides);
+  so.lcm_url = cfg.lcm.url;
+  so.v4l2 = cfg.v4l2;
+  so.libcamera = cfg.libcamera;
+  return so;
+}
+
 AppConfig load_cli_config(const std::string& config_path,
                           const std::vector<std::string>& overrides) {
   AppConfig cfg = load_config(config_path, overrides);

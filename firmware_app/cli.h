@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/source_factory.h"
 #include "firmware_app/config.h"
 
 namespace rdslam {
@@ -59,6 +60,11 @@ class ArgParser {
   std::vector<Opt> opts_;
   std::vector<Pos> pos_;
 };
+
+// SourceOptions from the configuration: camera (and whether --set camera.* overrode it), LCM
+// URL, live-camera sections, and replay pacing `speed` (0 = as fast as read).
+SourceOptions make_source_options(const AppConfig& cfg, const std::vector<std::string>& overrides,
+                                  double speed);
 
 // Loads --config/--set into an AppConfig, applying the log level. Throws ConfigError.
 AppConfig load_cli_config(const std::string& config_path,

@@ -75,11 +75,7 @@ int cmd_record(int argc, char** argv) {
   if (source_uri.empty()) source_uri = cfg.general.source;
 
   BlockedStopSignals signals;  // before anything that might start a thread
-  SourceOptions so;
-  so.speed = speed;
-  so.config_camera = cfg.camera;
-  so.camera_overridden = overrides_camera(overrides);
-  so.lcm_url = cfg.lcm.url;
+  const SourceOptions so = make_source_options(cfg, overrides, speed);
   std::unique_ptr<FrameSource> source = open_source(source_uri, so);
   TumRecorder recorder(out_dir, source_uri, source->camera());
 

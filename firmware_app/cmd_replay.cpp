@@ -70,11 +70,7 @@ int cmd_replay(int argc, char** argv) {
   if (!p.parse(argc, argv)) return 0;
   AppConfig cfg = load_cli_config(config_path, overrides);
 
-  SourceOptions so;
-  so.speed = realtime ? 1.0 : 0.0;
-  so.config_camera = cfg.camera;
-  so.camera_overridden = overrides_camera(overrides);
-  so.lcm_url = cfg.lcm.url;
+  const SourceOptions so = make_source_options(cfg, overrides, realtime ? 1.0 : 0.0);
   std::unique_ptr<FrameSource> source = open_source(uri, so);
   const CameraModel camera =
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;

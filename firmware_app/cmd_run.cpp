@@ -68,11 +68,7 @@ int cmd_run(int argc, char** argv) {
   // Before any thread exists (LCM, pipeline), so that every thread inherits the mask.
   StopSignals signals;
 
-  SourceOptions so;
-  so.speed = cfg.pipeline.replay_speed;
-  so.config_camera = cfg.camera;
-  so.camera_overridden = overrides_camera(overrides);
-  so.lcm_url = cfg.lcm.url;
+  const SourceOptions so = make_source_options(cfg, overrides, cfg.pipeline.replay_speed);
   std::unique_ptr<FrameSource> source = open_source(cfg.general.source, so);
   const SourceInfo& info = source->info();
   RDSLAM_LOG_INFO("run: source %s (%s, %dx%d, %s, %.1f fps nominal)", info.uri.c_str(),

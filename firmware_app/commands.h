@@ -6,5 +6,12 @@
 namespace rdslam {
 
 int cmd_config(int argc, char** argv);
+int cmd_run(int argc, char** argv);
+int cmd_sources(int argc, char** argv);
+int cmd_synth(int argc, char** argv);
+int cmd_eval(int argc, char** argv);
+int cmd_record(int argc, char** argv);
+int cmd_bench(int argc, char** argv);
+int cmd_replay(int argc, char** argv);
 
 }  // namespace rdslam

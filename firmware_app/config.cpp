@@ -31,6 +31,14 @@ std::vector<AppConfig::Section> AppConfig::sections() {
       {"", [this](ParamVisitor& v) { general.visit(v); }},
       {"camera", [this](ParamVisitor& v) { camera.visit(v); }},
       {"lcm", [this](ParamVisitor& v) { lcm.visit(v); }},
+      {"v4l2", [this](ParamVisitor& v) { v4l2.visit(v); }},
+      {"libcamera", [this](ParamVisitor& v) { libcamera.visit(v); }},
+      {"pipeline", [this](ParamVisitor& v) { pipeline.visit(v); }},
+      {"threads", [this](ParamVisitor& v) { threads.visit(v); }},
+      {"features", [this](ParamVisitor& v) { slam.features.visit(v); }},
+      {"tracker", [this](ParamVisitor& v) { slam.tracker.visit(v); }},
+      {"mapper", [this](ParamVisitor& v) { slam.mapper.visit(v); }},
+      {"parsac", [this](ParamVisitor& v) { parsac.visit(v); }},
   };
 }
 
@@ -39,8 +47,12 @@ void AppConfig::validate() const {
   if (!cam.empty()) throw ConfigError("config: " + cam);
   if (general.source.empty()) throw ConfigError("config: source: must not be empty");
   if (lcm.url.empty()) throw ConfigError("config: lcm.url: must not be empty");
-  if (lcm.pose_channel.empty() || lcm.status_channel.empty()) {
-    throw ConfigError("config: lcm.pose_channel/lcm.status_channel: must not be empty");
+  if (const std::string e = v4l2.validate(); !e.empty()) throw ConfigError("config: " + e);
+  if (const std::string e = slam.validate(); !e.empty()) throw ConfigError("config: " + e);
+  if (const std::string e = parsac.validate(); !e.empty()) throw ConfigError("config: " + e);
+  if (lcm.pose_channel.empty()) throw ConfigError("config: lcm.pose_channel: must not be empty");
+  if (lcm.status_channel.empty()) {
+    throw ConfigError("config: lcm.status_channel: must not be empty");
   }
 }
 

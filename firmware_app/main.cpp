@@ -18,6 +18,15 @@ struct Command {
 // Only subcommands that work are listed here (and therefore in --help).
 const Command kCommands[] = {
     {"config", "validate a configuration and print the effective values", rdslam::cmd_config},
+    {"run", "the daemon: track the configured source, publish poses over LCM", rdslam::cmd_run},
+    {"sources", "list the cameras (V4L2, libcamera) rdslam can use", rdslam::cmd_sources},
+    {"synth", "render a synthetic dynamic scene with exact ground truth", rdslam::cmd_synth},
+    {"record", "record a frame source into a TUM folder that replays bit-identically",
+     rdslam::cmd_record},
+    {"eval", "ATE/RPE of a trajectory against ground truth (TUM, EuRoC, KITTI)", rdslam::cmd_eval},
+    {"bench", "benchmarks behind docs/ figures (bench parsac: Tables 1, 2)", rdslam::cmd_bench},
+    {"replay", "run the SLAM pipeline on a recorded or synthetic source, with ATE",
+     rdslam::cmd_replay},
 };
 
 void print_help() {

@@ -55,6 +55,26 @@ else
   echo "install-deps: all ${#packages[@]} Debian packages present"
 fi
 
+# Optional: libcamera-dev builds the libcamera: source (CSI cameras). rdslam builds without
+# it, so a failure here is a warning, not an error.
+optional=(libcamera-dev)
+for p in "${optional[@]}"; do
+  if dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    continue
+  fi
+  if [[ $(id -u) -eq 0 ]]; then
+    opt_sudo=()
+  elif command -v sudo >/dev/null 2>&1; then
+    opt_sudo=(sudo)
+  else
+    echo "install-deps: optional package $p missing (not root, no sudo): the libcamera: source will not be built" >&2
+    continue
+  fi
+  echo "install-deps: installing optional Debian package $p"
+  DEBIAN_FRONTEND=noninteractive "${opt_sudo[@]}" apt-get install -y -qq --no-install-recommends "$p" >/dev/null ||
+    echo "install-deps: optional package $p could not be installed: the libcamera: source will not be built" >&2
+done
+
 if ((with_python)); then
   venv="$here/.venv"
   if [[ ! -x "$venv/bin/python" ]]; then
