@@ -18,6 +18,7 @@
 
 #include "core/parsac.h"
 #include "core/parsac_scene.h"
+#include "firmware_app/bench_pipeline.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
 
@@ -296,6 +297,8 @@ struct Bench {
 // One row per benchmark.
 const Bench kBenches[] = {
     {"parsac", "RDSLAM Sec. 5 synthetic experiment: Tables 1 and 2", bench_parsac},
+    {"pipeline", "SLAM pipeline: per-stage times, fps, latency, peak RSS (issue 10)",
+     bench_pipeline},
 };
 
 }  // namespace

@@ -1,0 +1,197 @@
+#include "firmware_app/bench_pipeline.h"
+
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/slam.h"
+#include "drivers/source_factory.h"
+#include "firmware_app/cli.h"
+#include "firmware_app/pipeline.h"
+#include "firmware_app/report.h"
+
+namespace rdslam {
+
+namespace {
+
+// Ends a source after `limit` frames (--frames): benchmarks a prefix of a long recording
+// without copying it. Forwards everything else to the wrapped source.
+class LimitedSource : public FrameSource {
+ public:
+  LimitedSource(FrameSource& inner, int64_t limit) : inner_(inner), limit_(limit) {
+    info_ = inner.info();
+    if (limit_ > 0 && (info_.frame_count < 0 || info_.frame_count > limit_)) {
+      info_.frame_count = limit_;
+    }
+  }
+  SourceStatus read(Frame& out, int timeout_ms) override {
+    if (limit_ > 0 && delivered_ >= limit_) return SourceStatus::kEndOfStream;
+    const SourceStatus s = inner_.read(out, timeout_ms);
+    if (s == SourceStatus::kOk) ++delivered_;
+    return s;
+  }
+  const SourceInfo& info() const override { return info_; }
+  std::optional<CameraModel> camera() const override { return inner_.camera(); }
+  std::optional<Trajectory> ground_truth() const override { return inner_.ground_truth(); }
+  SourceCounters counters() const override { return inner_.counters(); }
+
+ private:
+  FrameSource& inner_;
+  int64_t limit_;
+  int64_t delivered_ = 0;
+  SourceInfo info_;
+};
+
+void write_stage(JsonWriter& w, const char* name, double p50, double p99) {
+  w.begin_object(name).value("p50", p50).value("p99", p99).end_object();
+}
+
+void write_snapshot(JsonWriter& w, const char* name, const LatencyHistogram::Snapshot& s) {
+  write_stage(w, name, s.percentile_ms(0.5), s.percentile_ms(0.99));
+}
+
+void print_stage(const char* name, double p50, double p99, const char* note) {
+  std::printf("  %-22s p50 %8.2f ms  p99 %8.2f ms  %s\n", name, p50, p99, note);
+}
+
+}  // namespace
+
+int bench_pipeline(int argc, char** argv) {
+  std::string uri, config_path;
+  std::vector<std::string> overrides;
+  bool json = false, single_thread = false, async_mapper = false;
+  double frames_opt = 0;
+  ArgParser p(
+      "rdslam bench pipeline SOURCE [--json] [--config F] [--set K=V ...] [--frames N] "
+      "[--single-thread] [--async-mapper]",
+      "Run the SLAM pipeline on SOURCE as fast as possible (lossless: no frame dropped) and\n"
+      "report per-stage times (p50, p99), throughput fps, capture-to-publish latency and\n"
+      "peak RSS (issue 10). Feature mode: --set features.mode=orb|sift.");
+  p.positional("SOURCE", &uri, "frame source URI, e.g. synth:static_xyz or kitti:DIR");
+  p.config_options(&config_path, &overrides);
+  p.flag("--json", &json,
+         "print JSON: the common report keys plus stages {tracker, mapper, capture, publish}");
+  p.option("--frames", &frames_opt, "N", "process at most N frames (default: all)");
+  p.flag("--single-thread", &single_thread,
+         "run tracker and mapper alternately in this thread (run_offline): deterministic,\n"
+         "for `valgrind --tool=callgrind` instruction counts per frame");
+  p.flag("--async-mapper", &async_mapper,
+         "do not let the tracker wait for the mapper at keyframes (as `rdslam run` live);\n"
+         "default waits, as `rdslam replay` does, so tracking matches the offline result");
+  if (!p.parse(argc, argv)) return 0;
+  if (frames_opt < 0 || frames_opt > 1e9) throw UsageError("--frames: must be in [0, 1e9]");
+  AppConfig cfg = load_cli_config(config_path, overrides);
+
+  SourceOptions so = make_source_options(cfg, overrides, 0.0);
+  std::unique_ptr<FrameSource> opened = open_source(uri, so);
+  LimitedSource source(*opened, static_cast<int64_t>(frames_opt));
+  const CameraModel camera =
+      (!so.camera_overridden && source.camera()) ? *source.camera() : cfg.camera;
+  cfg.slam.tracker.sync_mapper = single_thread || !async_mapper;
+  cfg.slam.parsac = cfg.parsac;
+  const SourceInfo info = source.info();
+
+  RunReport report;
+  std::vector<TrackingState> states;
+  std::vector<double> latency_ms;
+  double tracker_p50 = 0, tracker_p99 = 0, mapper_p50 = 0, mapper_p99 = 0;
+  double wall_s = 0, mapper_total_ms = 0;
+  ReplayReport rr;
+
+  if (single_thread) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const OfflineRun run = run_offline(source, cfg.slam, camera);
+    wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::vector<double> track_ms, mapper_ms;
+    for (const auto& f : run.frames) {
+      states.push_back(f.result.state);
+      track_ms.push_back(f.track_ms);
+      // Offline latency: the frame is "published" when the tracker returns.
+      latency_ms.push_back(f.track_ms);
+      if (f.mapper_ms > 0) mapper_ms.push_back(f.mapper_ms);
+      mapper_total_ms += f.mapper_ms;
+    }
+    tracker_p50 = percentile(track_ms, 0.5);
+    tracker_p99 = percentile(track_ms, 0.99);
+    mapper_p50 = percentile(mapper_ms, 0.5);
+    mapper_p99 = percentile(mapper_ms, 0.99);
+  } else {
+    SlamStages stages = make_slam_stages(cfg.slam, camera);
+    PipelineOptions options;
+    options.params = cfg.pipeline;
+    options.threads = cfg.threads;
+    options.lossless = true;
+    rr = replay_source(source, *stages.tracker, *stages.mapper, options);
+    wall_s = rr.wall_s;
+    for (const auto& f : rr.frames) {
+      states.push_back(f.result.state);
+      latency_ms.push_back(f.latency_ns() * 1e-6);
+    }
+    tracker_p50 = rr.stages.tracker.percentile_ms(0.5);
+    tracker_p99 = rr.stages.tracker.percentile_ms(0.99);
+    mapper_p50 = rr.stages.mapper.percentile_ms(0.5);
+    mapper_p99 = rr.stages.mapper.percentile_ms(0.99);
+    mapper_total_ms = rr.stages.mapper.mean_ms() * rr.stages.mapper.total;
+  }
+  compute_tracking_stats(states, report);
+  compute_latency_stats(latency_ms, report);
+  report.fps = wall_s > 0 ? states.size() / wall_s : 0.0;
+  report.peak_rss_mb = peak_rss_mb();
+
+  const char* mode = single_thread ? "single-thread" : "pipeline";
+  if (json) {
+    JsonWriter w;
+    w.begin_object();
+    report.write_json(w);
+    w.value("source", uri);
+    w.value("width", info.width);
+    w.value("height", info.height);
+    w.value("feature_mode", cfg.slam.features.mode);
+    w.value("mode", mode);
+    w.value("sync_mapper", cfg.slam.tracker.sync_mapper);
+    w.value("total_s", wall_s);
+    w.value("ms_per_frame", states.empty() ? 0.0 : 1e3 * wall_s / states.size());
+    w.begin_object("stages");
+    write_stage(w, "tracker", tracker_p50, tracker_p99);
+    write_stage(w, "mapper", mapper_p50, mapper_p99);
+    if (!single_thread) {
+      write_snapshot(w, "capture", rr.stages.capture_read);
+      write_snapshot(w, "publish", rr.stages.publish);
+    }
+    w.end_object();
+    w.value("mapper_total_ms", mapper_total_ms);
+    if (!single_thread) {
+      w.value("dropped", static_cast<int64_t>(rr.status.frames_dropped));
+      w.value("publish_overflows", static_cast<int64_t>(rr.status.publish_overflows));
+    }
+    w.end_object();
+    std::fputs(w.str().c_str(), stdout);
+    return 0;
+  }
+  std::printf("rdslam bench pipeline %s (%dx%d, %s features, %s%s)\n", uri.c_str(), info.width,
+              info.height, cfg.slam.features.mode.c_str(), mode,
+              cfg.slam.tracker.sync_mapper ? ", tracker waits for keyframes" : "");
+  std::printf("  %-22s %lld (tracked %.1f%%)\n", "frames", static_cast<long long>(report.frames),
+              100.0 * report.tracked_ratio);
+  std::printf("  %-22s %.3f s (%.2f ms per frame)\n", "total time", wall_s,
+              states.empty() ? 0.0 : 1e3 * wall_s / states.size());
+  std::printf("  %-22s %.1f\n", "fps", report.fps);
+  print_stage("tracker", tracker_p50, tracker_p99, "per frame");
+  print_stage("mapper", mapper_p50, mapper_p99,
+              single_thread ? "per frame that did mapper work" : "per step that did work");
+  if (!single_thread) {
+    print_stage("capture", rr.stages.capture_read.percentile_ms(0.5),
+                rr.stages.capture_read.percentile_ms(0.99), "FrameSource::read()");
+    print_stage("publish", rr.stages.publish.percentile_ms(0.5),
+                rr.stages.publish.percentile_ms(0.99), "sinks");
+  }
+  print_stage("latency", report.latency_p50_ms, report.latency_p99_ms,
+              single_thread ? "(= tracker time offline)" : "capture to publish");
+  std::printf("  %-22s %.1f ms total\n", "mapper work", mapper_total_ms);
+  std::printf("  %-22s %.1f MiB\n", "peak RSS", report.peak_rss_mb);
+  return 0;
+}
+
+}  // namespace rdslam
