@@ -1,0 +1,91 @@
+// Online 3D point and keyframe updating of RDSLAM Section 4 (Algorithm 1) applied to the map.
+//
+// For one tracked frame (image, pose, features and the map ids of the tracked features) the
+// updater selects the `closest_keyframes` valid keyframes (optical axis within
+// `keyframe_view_angle_deg`, nearest camera centres), compares each one's colour histogram
+// with the frame's, and only when the sum of R, G, B distances exceeds `histogram_threshold`
+// runs Algorithm 1 (core/change_detection.h) on that keyframe's valid points that are not
+// tracked in this frame (a tracked point was just observed, so it is present). Points Alg. 1
+// declares changed get V(X) = 0; a checked keyframe whose invalid plus shared points exceed
+// `keyframe_invalid_ratio` of its points is marked invalid (the 90% rule). Invalid points
+// leave the matching index at the mapper's next publish (core/mapper.cpp skips !valid).
+// With `map_update = false` update() does nothing (Figure 9 ablation); with
+// `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
+//
+// "Shared" points of the 90% rule are those observed by at least 3 other keyframes, the same
+// reading as the mapper's keyframe culling (core/mapper.h).
+//
+// Pixels: the map stores undistorted feature coordinates and raw images; the appearance test
+// uses the raw keypoint in the keyframe and the ideal projection in the current frame, exact
+// for undistorted sources (synthetic, rectified datasets).
+//
+// Ownership: the caller (the mapper) owns the Map and passes it in; the updater owns only its
+// scratch buffers and the per-keyframe histogram cache. Threads: one thread (the mapper's).
+// Allocation: buffers grow during warm-up and are reused; the histogram cache allocates once
+// per new keyframe (keyframes are rare).
+#pragma once
+
+#include <Eigen/StdVector>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "core/change_detection.h"
+#include "core/features.h"
+#include "core/geometry.h"
+#include "core/map.h"
+
+namespace rdslam {
+
+struct MapUpdateStats {
+  int keyframes_selected = 0;     // closest keyframes found
+  int keyframes_triggered = 0;    // of those, histogram difference above the threshold
+  int points_checked = 0;         // points run through Algorithm 1
+  int points_invalidated = 0;     // V(X) set to 0 in this call
+  int keyframes_invalidated = 0;  // keyframes newly marked invalid in this call
+  int decisions[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
+};
+
+class MapUpdater {
+ public:
+  MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K);
+
+  // One frame: `image` is the frame (same channel count as the keyframe images), T_cam_world
+  // its estimated pose, `features`/`point_of` the frame's features and, per feature, the
+  // tracked map point id or -1. `invalidated` (optional) receives the ids set invalid.
+  MapUpdateStats update(Map& map, const cv::Mat& image, const Pose& T_cam_world,
+                        const Features& features, const std::vector<int64_t>& point_of,
+                        std::vector<int64_t>* invalidated = nullptr);
+
+  const ChangeDetectionParams& params() const { return params_; }
+
+ private:
+  struct Tracked {
+    Eigen::Vector2d pixel;
+    Eigen::Vector3d p_world;
+    double depth = 0.0;
+    int64_t id = -1;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  const ColorHistogram& keyframe_histogram(const Keyframe& kf);
+  void build_grid(int width, int height);
+  int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
+  const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+
+  ChangeDetectionParams params_;
+  PinholeIntrinsics K_;
+  ColorHistogram current_hist_;
+  std::unordered_map<int, ColorHistogram> kf_hist_;
+  // Scratch (reused every frame).
+  std::vector<int> kf_ids_;
+  std::vector<Eigen::Vector3d> z_axes_, centres_;
+  std::vector<int> selected_;
+  std::vector<Tracked, Eigen::aligned_allocator<Tracked>> tracked_;
+  std::vector<int64_t> tracked_ids_sorted_;
+  std::vector<int> cell_start_, cell_items_, cell_fill_;
+  int grid_cols_ = 0, grid_rows_ = 0;
+  double cell_px_ = 20.0;
+  std::vector<NeighbourPoint, Eigen::aligned_allocator<NeighbourPoint>> neighbours_;
+};
+
+}  // namespace rdslam
