@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "core/log.h"
+#include "core/slam.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
@@ -75,13 +76,30 @@ int cmd_run(int argc, char** argv) {
                   info.kind.c_str(), info.width, info.height, info.live ? "live" : "recorded",
                   info.nominal_fps);
 
-  PassthroughStages stages(source->ground_truth());
+  // The SLAM system, or the pass-through stages (ground truth) for testing consumers.
+  std::unique_ptr<PassthroughStages> passthrough;
+  SlamStages slam;
+  TrackerStage* tracker = nullptr;
+  MapperStage* mapper = nullptr;
+  if (cfg.pipeline.stages == "passthrough") {
+    passthrough = std::make_unique<PassthroughStages>(source->ground_truth());
+    tracker = &passthrough->tracker();
+    mapper = &passthrough->mapper();
+  } else {
+    const CameraModel camera =
+        (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
+    cfg.slam.parsac = cfg.parsac;
+    slam = make_slam_stages(cfg.slam, camera);
+    tracker = slam.tracker.get();
+    mapper = slam.mapper.get();
+  }
+  RDSLAM_LOG_INFO("run: stages %s", cfg.pipeline.stages.c_str());
   LcmPublisher lcm(cfg.lcm);
   PipelineOptions options;
   options.params = cfg.pipeline;
   options.threads = cfg.threads;
   options.lossless = !info.live && cfg.pipeline.replay_speed == 0.0;
-  Pipeline pipeline(*source, stages.tracker(), stages.mapper(), options);
+  Pipeline pipeline(*source, *tracker, *mapper, options);
   pipeline.add_sink(&lcm);
   pipeline.start();
   RDSLAM_LOG_INFO("run: publishing %s on %s, status on %s", cfg.lcm.pose_channel.c_str(),

@@ -15,6 +15,8 @@ void PipelineParams::visit(ParamVisitor& v) {
           "period of rdslam.status_t and of the stats log line");
   v.field("replay_speed", replay_speed, 0.0, 1000.0,
           "recorded sources: 1 = real time, 0 = as fast as possible (lossless)");
+  v.field("stages", stages, {"slam", "passthrough"},
+          "run: slam, or passthrough (publishes ground truth; for testing consumers)");
 }
 
 namespace {

@@ -21,6 +21,10 @@ struct PipelineParams {
   // Recorded sources in `rdslam run`: 1 = real time at the recorded timestamps (hardware in
   // the loop), X = X times real time, 0 = as fast as the tracker goes, lossless.
   double replay_speed = 1.0;
+  // What `rdslam run` tracks with: "slam" (the SLAM system, core/slam.h) or "passthrough"
+  // (publishes the source's ground truth, identity without it: for testing LCM consumers and
+  // the runtime without the algorithm).
+  std::string stages = "slam";
 
   void visit(ParamVisitor& v);
 };

@@ -116,6 +116,7 @@ std::vector<std::string> run_args(const std::string& source, const std::string& 
           "--set",       "lcm.pose_channel=" + pose_ch,
           "--set",       "lcm.status_channel=" + status_ch,
           "--set",       "pipeline.replay_speed=1",
+          "--set",       "pipeline.stages=passthrough",
           "--log-level", "info"};
 }
 
