@@ -33,6 +33,10 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
   cand_.resize(2048);
 }
 
+void Mapper::set_change_detection(const ChangeDetectionParams& p) {
+  updater_ = p.map_update ? std::make_unique<MapUpdater>(p, K_) : nullptr;
+}
+
 bool Mapper::step(int timeout_ms) {
   KeyframeCandidate* c = link_->candidates.front();
   if (!c) {
@@ -67,7 +71,16 @@ void Mapper::process(const KeyframeCandidate& c) {
       handle_init(c);
       return;
     case KeyframeCandidate::Kind::kKeyframe:
-      if (c.epoch == epoch_ && !map_.keyframes.empty()) handle_keyframe(c);
+      if (c.epoch == epoch_ && !map_.keyframes.empty()) {
+        if (updater_) {
+          const MapUpdateStats u =
+              updater_->update(map_, c.image, c.T_cam_world, c.features, c.point_of);
+          stats_.points_invalidated += u.points_invalidated;
+          stats_.keyframes_invalidated += u.keyframes_invalidated;
+          link_->invalidated_points.fetch_add(u.points_invalidated, std::memory_order_relaxed);
+        }
+        handle_keyframe(c);
+      }
       return;
   }
 }

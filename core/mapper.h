@@ -25,6 +25,7 @@
 #include "core/features.h"
 #include "core/keyframe.h"
 #include "core/map.h"
+#include "core/map_updater.h"
 #include "core/params.h"
 
 namespace rdslam {
@@ -47,6 +48,7 @@ struct MapperStats {
   int last_new_points = 0;
   double last_ba_ms = 0.0;
   int snapshots = 0;
+  int points_invalidated = 0, keyframes_invalidated = 0;  // Sec. 4 updating (MapUpdater)
 };
 
 class Mapper {
@@ -57,6 +59,11 @@ class Mapper {
   bool step(int timeout_ms);
   const Map& map() const { return map_; }
   const MapperStats& stats() const { return stats_; }
+  // Enables Sec. 4's online point and keyframe updating (core/map_updater.h): every keyframe
+  // candidate the tracker hands over (frame image, pose, tracked point ids) is checked against
+  // the map before it is inserted; invalid points leave the index at that insertion's publish.
+  // Call before the first step().
+  void set_change_detection(const ChangeDetectionParams& p);
 
  private:
   void process(const KeyframeCandidate& c);
@@ -79,6 +86,7 @@ class Mapper {
   uint64_t version_ = 0;
   MapperStats stats_;
   std::vector<int> cand_;
+  std::unique_ptr<MapUpdater> updater_;
 };
 
 }  // namespace rdslam

@@ -27,7 +27,9 @@ class TrackerStageImpl : public TrackerStage {
 class MapperStageImpl : public MapperStage {
  public:
   MapperStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
-      : mapper_(p.mapper, p.features, cam, std::move(link)) {}
+      : mapper_(p.mapper, p.features, cam, std::move(link)) {
+    mapper_.set_change_detection(p.dynamic);
+  }
   bool step(int timeout_ms) override { return mapper_.step(timeout_ms); }
 
  private:
@@ -62,6 +64,7 @@ OfflineRun run_offline(FrameSource& source, const SlamParams& params, const Came
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, camera, link,
                   params.mapper.max_points);
   Mapper mapper(params.mapper, params.features, camera, link);
+  mapper.set_change_detection(params.dynamic);
   OfflineRun run;
   Frame frame;
   using Clock = std::chrono::steady_clock;

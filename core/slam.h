@@ -17,6 +17,7 @@
 #include <memory>
 #include <vector>
 
+#include "core/change_detection.h"
 #include "core/features.h"
 #include "core/mapper.h"
 #include "core/stages.h"
@@ -30,6 +31,7 @@ struct SlamParams {
   TrackerParams tracker;
   MapperParams mapper;
   ParsacParams parsac;  // config section `parsac` (core/parsac.h), copied in by the caller
+  ChangeDetectionParams dynamic;  // config section `dynamic`: Sec. 4 updating in the mapper
   // Cross-section checks; empty when valid.
   std::string validate() const;
 };
