@@ -67,7 +67,17 @@ int cmd_replay(int argc, char** argv) {
   p.option("--report", &report_path, "OUT.json", "write the JSON report");
   p.option("--plot", &plot_path, "OUT.png", "write a top-view plot against ground truth");
   p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
+  // Ablation aliases of config keys (issue 8): the paper's Figures 9, 4-5 and 8.
+  bool no_map_update = false, no_occlusion_handling = false;
+  std::string estimator;
+  p.flag("--no-map-update", &no_map_update, "alias of --set dynamic.map_update=false");
+  p.flag("--no-occlusion-handling", &no_occlusion_handling,
+         "alias of --set dynamic.occlusion_handling=false");
+  p.option("--estimator", &estimator, "ransac|arsac|parsac", "alias of --set parsac.method=...");
   if (!p.parse(argc, argv)) return 0;
+  if (no_map_update) overrides.push_back("dynamic.map_update=false");
+  if (no_occlusion_handling) overrides.push_back("dynamic.occlusion_handling=false");
+  if (!estimator.empty()) overrides.push_back("parsac.method=" + estimator);
   AppConfig cfg = load_cli_config(config_path, overrides);
 
   const SourceOptions so = make_source_options(cfg, overrides, realtime ? 1.0 : 0.0);

@@ -39,6 +39,7 @@ std::vector<AppConfig::Section> AppConfig::sections() {
       {"tracker", [this](ParamVisitor& v) { slam.tracker.visit(v); }},
       {"mapper", [this](ParamVisitor& v) { slam.mapper.visit(v); }},
       {"parsac", [this](ParamVisitor& v) { parsac.visit(v); }},
+      {"dynamic", [this](ParamVisitor& v) { slam.dynamic.visit(v); }},
   };
 }
 

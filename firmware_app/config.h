@@ -50,10 +50,10 @@ struct AppConfig {
   LcmParams lcm;
   V4l2Params v4l2;            // USB cameras (drivers/v4l2_source.h)
   LibcameraParams libcamera;  // CSI cameras through libcamera (drivers/libcamera_source.h)
-  PipelineParams pipeline;  // frame pool, rings, replay pacing (firmware_app/pipeline.h)
-  ThreadParams threads;     // cores and priority per pipeline thread
-  SlamParams slam;          // features, tracker, mapper sections (core/slam.h)
-  ParsacParams parsac;      // robust pose estimation, RDSLAM Sec. 5 (core/parsac.h)
+  PipelineParams pipeline;    // frame pool, rings, replay pacing (firmware_app/pipeline.h)
+  ThreadParams threads;       // cores and priority per pipeline thread
+  SlamParams slam;            // features, tracker, mapper sections (core/slam.h)
+  ParsacParams parsac;        // robust pose estimation, RDSLAM Sec. 5 (core/parsac.h)
 
   // Sections in file order: {yaml key, visitor}. An empty key means top-level fields.
   // A module adds its parameter struct as a member above and one line in sections().
