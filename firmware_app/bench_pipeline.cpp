@@ -89,7 +89,10 @@ int bench_pipeline(int argc, char** argv) {
   LimitedSource source(*opened, static_cast<int64_t>(frames_opt));
   const CameraModel camera =
       (!so.camera_overridden && source.camera()) ? *source.camera() : cfg.camera;
-  cfg.slam.tracker.sync_mapper = single_thread || !async_mapper;
+  // Threaded lossless replay waits for the mapper at keyframes as `rdslam replay` does. The
+  // single-thread driver already runs the mapper after every frame; a tracker that waited
+  // there would only time out (the mapper cannot run while the tracker blocks).
+  cfg.slam.tracker.sync_mapper = !single_thread && !async_mapper;
   cfg.slam.parsac = cfg.parsac;
   const SourceInfo info = source.info();
 
