@@ -12,6 +12,7 @@
 #include <sys/mman.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <map>
@@ -130,9 +131,12 @@ class FakeV4l2 : public V4l2Syscalls {
       case VIDIOC_QUERYCAP: {
         auto* c = static_cast<v4l2_capability*>(arg);
         *c = {};
-        std::strcpy(reinterpret_cast<char*>(c->driver), "uvcvideo");
-        std::strcpy(reinterpret_cast<char*>(c->card), "Fake UVC Camera");
-        std::strcpy(reinterpret_cast<char*>(c->bus_info), "usb-fake-1");
+        // snprintf with the field's own size: GCC's -Wstringop-overflow cannot prove strcpy
+        // safe once the ioctl argument has been seen as other structs in this switch.
+        std::snprintf(reinterpret_cast<char*>(c->driver), sizeof(c->driver), "%s", "uvcvideo");
+        std::snprintf(reinterpret_cast<char*>(c->card), sizeof(c->card), "%s", "Fake UVC Camera");
+        std::snprintf(reinterpret_cast<char*>(c->bus_info), sizeof(c->bus_info), "%s",
+                      "usb-fake-1");
         c->device_caps = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING;
         c->capabilities = c->device_caps | V4L2_CAP_DEVICE_CAPS;
         return 0;
@@ -141,8 +145,8 @@ class FakeV4l2 : public V4l2Syscalls {
         auto* d = static_cast<v4l2_fmtdesc*>(arg);
         if (d->index >= formats.size()) return fail(EINVAL);
         d->pixelformat = formats[d->index];
-        std::strcpy(reinterpret_cast<char*>(d->description),
-                    d->pixelformat == V4L2_PIX_FMT_MJPEG ? "Motion-JPEG" : "YUYV 4:2:2");
+        std::snprintf(reinterpret_cast<char*>(d->description), sizeof(d->description), "%s",
+                      d->pixelformat == V4L2_PIX_FMT_MJPEG ? "Motion-JPEG" : "YUYV 4:2:2");
         return 0;
       }
       case VIDIOC_S_FMT: {
@@ -332,8 +336,8 @@ class FakeV4l2 : public V4l2Syscalls {
     if (req != VIDIOC_QUERYCAP) return fail(ENOTTY);
     auto* c = static_cast<v4l2_capability*>(arg);
     *c = {};
-    std::strcpy(reinterpret_cast<char*>(c->driver), "uvcvideo");
-    std::strcpy(reinterpret_cast<char*>(c->card), "Fake UVC Camera");
+    std::snprintf(reinterpret_cast<char*>(c->driver), sizeof(c->driver), "%s", "uvcvideo");
+    std::snprintf(reinterpret_cast<char*>(c->card), sizeof(c->card), "%s", "Fake UVC Camera");
     c->device_caps = V4L2_CAP_META_CAPTURE | V4L2_CAP_STREAMING;
     c->capabilities = c->device_caps | V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_DEVICE_CAPS;
     return 0;
