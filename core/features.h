@@ -72,6 +72,23 @@ struct Features {
 
 // Descriptor distance: Hamming bits (binary) or L2 (float), as a double.
 double descriptor_distance(const uint8_t* a, const uint8_t* b, bool binary);
+
+// The nearest and second-nearest candidate seen so far, for the ratio test of every matcher
+// (tracker, initializer, mapper). `index` is -1 until a candidate is offered.
+struct BestTwo {
+  double d1 = 1e30;
+  double d2 = 1e30;
+  int index = -1;
+  void offer(double d, int i) {
+    if (d < d1) {
+      d2 = d1;
+      d1 = d;
+      index = i;
+    } else if (d < d2) {
+      d2 = d;
+    }
+  }
+};
 inline int hamming256(const uint8_t* a, const uint8_t* b) {
   const uint64_t* x = reinterpret_cast<const uint64_t*>(a);
   const uint64_t* y = reinterpret_cast<const uint64_t*>(b);

@@ -73,20 +73,14 @@ int Initializer::match(const Features& cur) {
     const int n =
         cur.radius_search(ref_.un[i].x, ref_.un[i].y, radius, ref_.level[i] - 1, ref_.level[i] + 1,
                           cand_.data(), static_cast<int>(cand_.size()));
-    double b1 = 1e18, b2 = 1e18;
-    int bi = -1;
+    BestTwo best;
     for (int k = 0; k < n; ++k) {
       const int j = cand_[k];
-      const double d = descriptor_distance(ref_.desc_ptr(i), cur.desc_ptr(j), bin);
-      if (d < b1) {
-        b2 = b1;
-        b1 = d;
-        bi = j;
-      } else if (d < b2) {
-        b2 = d;
-      }
+      best.offer(descriptor_distance(ref_.desc_ptr(i), cur.desc_ptr(j), bin), j);
     }
-    if (bi < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    const int bi = best.index;
+    const double b1 = best.d1;
+    if (bi < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
     if (b1 < best_cur[bi]) {
       if (best_cur_ref[bi] >= 0) match_of_ref_[best_cur_ref[bi]] = -1;
       best_cur[bi] = b1;

@@ -189,22 +189,16 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, std::vector<
       const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
       const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
       if (ln < 1e-12) continue;
-      double b1 = 1e30, b2 = 1e30;
-      int bi = -1;
+      BestTwo best;
       for (int i : r_free) {
         const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
         if (e * e > 3.84 * fr.scale[i] * fr.scale[i]) continue;
         if (bin && std::abs(fr.level[i] - fc.level[j]) > 2) continue;
-        const double d = descriptor_distance(fr.desc_ptr(i), fc.desc_ptr(j), bin);
-        if (d < b1) {
-          b2 = b1;
-          b1 = d;
-          bi = i;
-        } else if (d < b2) {
-          b2 = d;
-        }
+        best.offer(descriptor_distance(fr.desc_ptr(i), fc.desc_ptr(j), bin), i);
       }
-      if (bi < 0 || b1 > max_d || (b2 < 1e29 && b1 > ratio * b2)) continue;
+      const int bi = best.index;
+      const double b1 = best.d1;
+      if (bi < 0 || b1 > max_d || (best.d2 < 1e29 && b1 > ratio * best.d2)) continue;
       if (b1 < claim[bi]) {
         if (claim_j[bi] >= 0) match_r[claim_j[bi]] = -1;
         claim[bi] = b1;

@@ -105,20 +105,14 @@ int Tracker::match_motion(const Pose& T, double radius) {
     const int n = cur_.f.radius_search(
         float(uv.x()), float(uv.y()), float(radius * last_.f.scale[i]), bin ? lvl - 1 : -1,
         bin ? lvl + 1 : 1 << 20, cand_.data(), static_cast<int>(cand_.size()));
-    double b1 = 1e30, b2 = 1e30;
-    int bj = -1;
+    BestTwo best;
     for (int k = 0; k < n; ++k) {
       const int j = cand_[k];
-      const double d = descriptor_distance(last_.f.desc_ptr(i), cur_.f.desc_ptr(j), bin);
-      if (d < b1) {
-        b2 = b1;
-        b1 = d;
-        bj = j;
-      } else if (d < b2) {
-        b2 = d;
-      }
+      best.offer(descriptor_distance(last_.f.desc_ptr(i), cur_.f.desc_ptr(j), bin), j);
     }
-    if (bj < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    const int bj = best.index;
+    const double b1 = best.d1;
+    if (bj < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
     if (b1 >= cur_.best_dist[bj]) continue;
     cur_.pid[bj] = last_.pid[i];
     cur_.p[bj] = last_.p[i];
@@ -165,22 +159,16 @@ int Tracker::match_local_map(const Pose& T, double radius) {
     const double rad = radius * (view_cos > 0.998 ? 1.0 : 1.5) * level_scale_[lvl];
     const int n = cur_.f.radius_search(float(uv.x()), float(uv.y()), float(rad), lo, hi,
                                        cand_.data(), static_cast<int>(cand_.size()));
-    double b1 = 1e30, b2 = 1e30;
-    int bj = -1;
+    BestTwo best;
     const uint8_t* d_r = s.desc.ptr<uint8_t>(r);
     for (int k = 0; k < n; ++k) {
       const int j = cand_[k];
       if (cur_.pid[j] >= 0) continue;
-      const double d = descriptor_distance(d_r, cur_.f.desc_ptr(j), bin);
-      if (d < b1) {
-        b2 = b1;
-        b1 = d;
-        bj = j;
-      } else if (d < b2) {
-        b2 = d;
-      }
+      best.offer(descriptor_distance(d_r, cur_.f.desc_ptr(j), bin), j);
     }
-    if (bj < 0 || b1 > max_d || b1 > ratio * b2) continue;
+    const int bj = best.index;
+    const double b1 = best.d1;
+    if (bj < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
     cur_.pid[bj] = s.ids[r];
     cur_.p[bj] = p;
     cur_.row[bj] = r;
