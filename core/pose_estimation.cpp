@@ -11,10 +11,13 @@ constexpr double kChi2 = 5.991;  // chi-square 2 DoF, 95%
 
 PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n, Pose& T,
-                            uint8_t* inlier, int rounds, int iterations) {
+                            uint8_t* inlier, int rounds, int iterations,
+                            bool keep_initial_inliers) {
   PoseRefineStats st;
   if (n <= 0) return st;
-  for (int i = 0; i < n; ++i) inlier[i] = 1;
+  if (!keep_initial_inliers) {
+    for (int i = 0; i < n; ++i) inlier[i] = 1;
+  }
   const double huber = std::sqrt(kChi2);
   for (int round = 0; round < rounds; ++round) {
     const bool robust = round < rounds - 1;
@@ -95,7 +98,11 @@ int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2
   if (st != PoseStatus::kOk) return 0;
   T.R = res.T_cam_world.linear();
   T.t = res.T_cam_world.translation();
-  return refine_pose(K_, p_world, obs, sigma_px, n, T, inlier).inliers;
+  // Sec. 5: "decompose ... into R and T, and then refine them by minimizing (1)" over the
+  // robust estimator's inliers. Starting eq. (1) from all correspondences instead would let
+  // the rejected ones (e.g. a rigidly moving object, Figure 8) pull the pose back through
+  // the robust kernel before the first re-classification.
+  return refine_pose(K_, p_world, obs, sigma_px, n, T, inlier, 4, 10, true).inliers;
 }
 
 }  // namespace rdslam

@@ -27,11 +27,14 @@ struct PoseRefineStats {
 // Eq. (1) with robust weights. `sigma_px[i]` is the measurement standard deviation of
 // observation i (pixels, grows with the pyramid level). Observations whose squared normalised
 // error exceeds 5.991 (chi-square 2 DoF, 95%) are classified outliers in `inlier[i]` (0/1);
-// outliers are excluded from the next round. Does not allocate.
+// outliers are excluded from the next round. With `keep_initial_inliers`, the first round
+// uses only the observations already marked 1 in `inlier` (a robust estimator's consensus
+// set), so observations it rejected cannot pull the pose before they are re-classified.
+// Does not allocate.
 PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n,
-                            Pose& T_cam_world, uint8_t* inlier, int rounds = 4,
-                            int iterations = 10);
+                            Pose& T_cam_world, uint8_t* inlier, int rounds = 4, int iterations = 10,
+                            bool keep_initial_inliers = false);
 
 class PoseEstimator {
  public:

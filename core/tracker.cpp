@@ -63,6 +63,7 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   corr_inl_.resize(cap);
   reloc_pairs_.resize(2 * cap);
   row_stamp_.assign(static_cast<size_t>(max_points) + 4096, -1);
+  row_rejected_.assign(row_stamp_.size(), -1);
   kf_votes_.reserve(4096);
   level_scale_.resize(std::max(1, features.levels));
   for (size_t l = 0; l < level_scale_.size(); ++l) {
@@ -81,6 +82,7 @@ void Tracker::refresh_snapshot() {
   snap_ = std::move(s);  // the previous snapshot is freed by the mapper (MatchIndex::collect)
   if (static_cast<int>(row_stamp_.size()) < snap_->rows()) {
     row_stamp_.resize(static_cast<size_t>(snap_->rows()) * 2, -1);  // map above its cap
+    row_rejected_.resize(row_stamp_.size(), -1);
   }
   // Bundle adjustment moved points: refresh the previous frame's positions and rows.
   for (int i = 0; i < last_.f.count; ++i) {
@@ -138,7 +140,7 @@ int Tracker::match_local_map(const Pose& T, double radius) {
   }
   int added = 0;
   for (int r = 0; r < s.rows(); ++r) {
-    if (row_stamp_[r] == frame_no_) continue;
+    if (row_stamp_[r] == frame_no_ || row_rejected_[r] == track_no_) continue;
     const Eigen::Vector3d& p = s.p_world[r];
     const Eigen::Vector3d pc = T * p;
     if (pc.z() <= 1e-6) continue;
@@ -215,13 +217,20 @@ int Tracker::robust_optimise(Pose& T, const Pose& guess) {
     corr_feat_[n] = j;
     ++n;
   }
+  // The prediction only guides the matching: PARSAC samples its hypotheses from the matches
+  // alone (Sec. 5). Scored as an extra hypothesis, a prediction that has drifted with a slowly
+  // moving object would win every frame and end the search at once (adaptive termination),
+  // so every estimator would return the same drifting pose.
   Pose Tr = guess;
   const int inl = estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), n, Tr,
-                                      corr_inl_.data(), &guess);
+                                      corr_inl_.data(), nullptr);
   if (inl < 10) return optimise(T);  // no model: refine from the prediction
   for (int k = 0; k < n; ++k) {
     if (corr_inl_[k]) continue;
     const int j = corr_feat_[k];
+    // Rejected this frame: the projection search below must not match the point again, or
+    // eq. (1) would re-admit what PARSAC rejected (e.g. the moving book of Figure 8).
+    if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
     cur_.pid[j] = -1;
     cur_.row[j] = -1;
     cur_.best_dist[j] = 1e30f;
@@ -392,6 +401,7 @@ void Tracker::fill_result(TrackResult& r) const {
 
 TrackResult Tracker::track(const Frame& frame) {
   ++frame_no_;
+  ++track_no_;
   TrackResult result;
   const cv::Mat* img = &frame.image;
   if (frame.image.type() == CV_8UC3) {

@@ -135,6 +135,9 @@ class Tracker {
   std::vector<int> reloc_pairs_;
   cv::Mat ref_image_;               // image of the initializer's reference frame
   std::vector<int64_t> row_stamp_;  // per snapshot row: frame_no_ when matched this frame
+  // Per snapshot row: track_no_ of the frame whose robust estimate rejected the point.
+  std::vector<int64_t> row_rejected_;
+  int64_t track_no_ = 0;  // frames tracked (frame_no_ also advances between search passes)
   std::vector<int> kf_votes_;
   std::vector<float> level_scale_;
   TrackerStats stats_;
