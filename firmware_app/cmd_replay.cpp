@@ -14,36 +14,12 @@
 #include "firmware_app/commands.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/plot.h"
+#include "firmware_app/progress.h"
 #include "firmware_app/report.h"
 
 namespace rdslam {
 
 namespace {
-
-// Progress bar on stderr from the publisher thread (at most every 1% of the frames).
-class ProgressSink : public PipelineSink {
- public:
-  explicit ProgressSink(int64_t total) : total_(total) {}
-  void on_frame(const FrameResult& r) override {
-    ++done_;
-    if (total_ <= 0 || done_ * 100 / total_ == shown_) return;
-    shown_ = done_ * 100 / total_;
-    const int width = 40;
-    const int filled = static_cast<int>(shown_ * width / 100);
-    char bar[64];
-    for (int i = 0; i < width; ++i) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    std::fprintf(stderr, "\r[%s] %3lld%% frame %lld/%lld %-12s", bar,
-                 static_cast<long long>(shown_), static_cast<long long>(done_),
-                 static_cast<long long>(total_), to_string(r.result.state));
-    if (done_ >= total_) std::fprintf(stderr, "\n");
-  }
-
- private:
-  int64_t total_;
-  int64_t done_ = 0;
-  int64_t shown_ = -1;
-};
 
 bool tracked(TrackingState s) {
   return s == TrackingState::kTracking || s == TrackingState::kRelocalized;
@@ -93,7 +69,7 @@ int cmd_replay(int argc, char** argv) {
   options.params = cfg.pipeline;
   options.threads = cfg.threads;
   options.lossless = !realtime;
-  ProgressSink progress(source->info().frame_count);
+  ProgressSink progress(source->info().frame_count, stderr);
   const ReplayReport rr =
       replay_source(*source, *stages.tracker, *stages.mapper, options, {&progress});
 
@@ -132,6 +108,12 @@ int cmd_replay(int argc, char** argv) {
               rr.stages.tracker.percentile_ms(0.99));
   std::printf("  %-26s p50 %.2f  p99 %.2f\n", "latency ms", report.latency_p50_ms,
               report.latency_p99_ms);
+  const PipelineStatus& st = rr.status;
+  std::printf("  %-26s %llu (source skipped %llu, capture %llu, tracker %llu)\n", "dropped",
+              static_cast<unsigned long long>(st.frames_dropped),
+              static_cast<unsigned long long>(st.source_skipped),
+              static_cast<unsigned long long>(st.dropped_capture),
+              static_cast<unsigned long long>(st.dropped_tracker));
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
   if (report.ate_rmse_m) {
     std::printf("  %-26s %.4f m (%.3f%% of path)\n", "ATE rmse (Sim3)", *report.ate_rmse_m,
@@ -153,6 +135,13 @@ int cmd_replay(int argc, char** argv) {
     w.begin_object("tracker_ms");
     w.value("p50", rr.stages.tracker.percentile_ms(0.5));
     w.value("p99", rr.stages.tracker.percentile_ms(0.99));
+    w.end_object();
+    w.begin_object("dropped");  // captured + source_skipped == processed + total
+    w.value("total", static_cast<int64_t>(st.frames_dropped));
+    w.value("source_skipped", static_cast<int64_t>(st.source_skipped));
+    w.value("capture", static_cast<int64_t>(st.dropped_capture));
+    w.value("tracker", static_cast<int64_t>(st.dropped_tracker));
+    w.value("publish_overflows", static_cast<int64_t>(st.publish_overflows));
     w.end_object();
     w.end_object();
     FILE* f = std::fopen(report_path.c_str(), "w");

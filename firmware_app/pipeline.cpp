@@ -284,6 +284,9 @@ void Pipeline::capture_loop() {
       source_faults_.fetch_add(1, std::memory_order_relaxed);
     }
   }
+  // Frames a paced source passed over after the last delivered one (it fell behind at the
+  // end) complete the books too; stored before end of stream so the final status has them.
+  source_skipped_.store(source_.counters().skipped, std::memory_order_relaxed);
   // A slot still in our hands is simply not returned: the pool dies with the pipeline.
   frames_.try_push(SlotRing::kEndOfStream);
   frames_bell_.ring();
@@ -481,10 +484,10 @@ void Pipeline::build_status(PipelineStatus& s, int64_t now_ns, bool final_report
   s.frames_processed = processed;
   s.dropped_capture = dropped_capture_.load(std::memory_order_relaxed);
   s.dropped_tracker = dropped_tracker_.load(std::memory_order_relaxed);
-  s.frames_dropped = s.dropped_capture + s.dropped_tracker;
   s.source_faults = source_faults_.load(std::memory_order_relaxed);
   s.source_timeouts = source_timeouts_.load(std::memory_order_relaxed);
   s.source_skipped = source_skipped_.load(std::memory_order_relaxed);
+  s.frames_dropped = s.source_skipped + s.dropped_capture + s.dropped_tracker;
   s.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
   s.frames_published = published_.load(std::memory_order_acquire);
   s.last_seq = last_seq_.load(std::memory_order_relaxed);
@@ -514,12 +517,13 @@ void Pipeline::publish_status(int64_t now_ns, bool final_report) {
                         final_report ? " (total)" : "", to_string(s.state), s.fps,
                         static_cast<unsigned long long>(s.frames_captured),
                         static_cast<unsigned long long>(s.frames_processed));
-  n += std::snprintf(line + n, sizeof(line) - n, " dropped %llu (capture %llu, tracker %llu)",
+  n += std::snprintf(line + n, sizeof(line) - n,
+                     " dropped %llu (source skipped %llu, capture %llu, tracker %llu)",
                      static_cast<unsigned long long>(s.frames_dropped),
+                     static_cast<unsigned long long>(s.source_skipped),
                      static_cast<unsigned long long>(s.dropped_capture),
                      static_cast<unsigned long long>(s.dropped_tracker));
-  n += std::snprintf(line + n, sizeof(line) - n, " source skipped %llu faults %llu overflows %llu",
-                     static_cast<unsigned long long>(s.source_skipped),
+  n += std::snprintf(line + n, sizeof(line) - n, " faults %llu overflows %llu",
                      static_cast<unsigned long long>(s.source_faults),
                      static_cast<unsigned long long>(s.publish_overflows));
   n += std::snprintf(line + n, sizeof(line) - n,
