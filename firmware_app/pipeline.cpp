@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -180,6 +181,20 @@ void Pipeline::setup_thread(PipelineThread which) {
           ts.spec.priority);
     }
   }
+  if (ts.spec.nice != 0 && !ts.fifo_applied) {
+    // Linux: nice is per thread (setpriority on the thread id). A mapper at nice > 0 leaves
+    // the tracker the CPU it needs when both share a core (2-core boards).
+    errno = 0;
+    const int rc =
+        setpriority(PRIO_PROCESS, static_cast<id_t>(ts.tid), ts.spec.nice) == 0 ? 0 : errno;
+    ts.nice_applied = rc == 0;
+    if (rc != 0) {
+      RDSLAM_LOG_WARN(
+          "threads.%s_nice: nice %d not permitted (%s); the %s thread keeps nice 0. Negative "
+          "values need CAP_SYS_NICE or LimitNICE= (systemd)",
+          to_string(which), ts.spec.nice, std::strerror(rc), to_string(which));
+    }
+  }
 }
 
 void Pipeline::thread_main(PipelineThread which) {
@@ -226,15 +241,16 @@ void Pipeline::log_thread_table() const {
                   pool_.frame(0).image.cols, pool_.frame(0).image.rows,
                   options_.lossless ? "lossless (replay speed 0)" : "newest frame wins",
                   source_.info().uri.c_str());
-  RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8s %-12s %-8s %s", "thread", "tid", "cores", "policy",
-                  "priority");
+  RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8s %-12s %-8s %-8s %s", "thread", "tid", "cores",
+                  "policy", "priority", "nice");
   for (int i = 0; i < kPipelineThreads; ++i) {
     const ThreadState& ts = threads_[i];
     const std::string cores = cores_text(ts.spec.cores) +
                               (ts.spec.cores.empty() || ts.affinity_applied ? "" : " (FAILED)");
     const char* policy = ts.spec.priority == 0 ? "OTHER" : (ts.fifo_applied ? "FIFO" : "OTHER(!)");
-    RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8d %-12s %-8s %d", kThreadNames[i], ts.tid,
-                    cores.c_str(), policy, ts.fifo_applied ? ts.spec.priority : 0);
+    RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8d %-12s %-8s %-8d %d", kThreadNames[i], ts.tid,
+                    cores.c_str(), policy, ts.fifo_applied ? ts.spec.priority : 0,
+                    ts.nice_applied ? ts.spec.nice : 0);
   }
 }
 

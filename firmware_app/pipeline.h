@@ -187,6 +187,7 @@ class Pipeline {
     int tid = 0;
     bool affinity_applied = false;
     bool fifo_applied = false;
+    bool nice_applied = false;
   };
 
   void thread_main(PipelineThread which);

@@ -5,8 +5,12 @@
 #include <gtest/gtest.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <string>
 #include <thread>
@@ -362,6 +366,32 @@ TEST(Pipeline, TrackerAffinityAndPriorityAreApplied) {
   EXPECT_TRUE(tracker.only_core0_);
   // Either FIFO was granted or the thread fell back to normal scheduling; never anything else.
   EXPECT_TRUE(tracker.policy_ == SCHED_FIFO || tracker.policy_ == SCHED_OTHER) << tracker.policy_;
+}
+
+// Raising a thread's nice value is always permitted: the mapper runs at the configured
+// nice, the other threads keep the process's.
+class NiceProbeMapper : public MapperStage {
+ public:
+  bool step(int timeout_ms) override {
+    errno = 0;
+    nice_ = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(std::min(timeout_ms, 5)));
+    return false;
+  }
+  std::atomic<int> nice_{-100};
+};
+
+TEST(Pipeline, MapperNiceIsApplied) {
+  CountingSource source(5);
+  ScriptedTracker tracker;
+  NiceProbeMapper mapper;
+  PipelineOptions o = small_options(true);
+  const int base = getpriority(PRIO_PROCESS, 0);
+  o.threads.mapper.nice = std::min(base + 7, 19);
+  replay_source(source, tracker, mapper, o);
+  EXPECT_EQ(mapper.nice_.load(), std::min(base + 7, 19));
+  EXPECT_EQ(getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))), base)
+      << "only the mapper thread changed";
 }
 
 TEST(Pipeline, PeriodicStatusIsPublishedAndFinalStatusSummarisesTheRun) {
