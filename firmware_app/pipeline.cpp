@@ -168,7 +168,14 @@ void Pipeline::setup_thread(PipelineThread which) {
                       to_string(which), cores_text(ts.spec.cores).c_str(), std::strerror(rc));
     }
   }
-  if (ts.spec.priority > 0) {
+  if (ts.spec.priority > 0 && options_.lossless) {
+    // A lossless replay runs as fast as the stages go, never waiting for a frame: at
+    // SCHED_FIFO its threads would hold their cores for the whole run (everything else on
+    // the machine starves but for the kernel's RT throttling). Real-time priorities are for
+    // paced and live runs, where they bound the latency (docs/benchmarks.md).
+    RDSLAM_LOG_INFO("threads.%s_priority: %d not applied in a lossless replay (normal scheduling)",
+                    to_string(which), ts.spec.priority);
+  } else if (ts.spec.priority > 0) {
     sched_param sp{};
     sp.sched_priority = ts.spec.priority;
     const int rc = pthread_setschedparam(self, SCHED_FIFO, &sp);
@@ -247,7 +254,10 @@ void Pipeline::log_thread_table() const {
     const ThreadState& ts = threads_[i];
     const std::string cores = cores_text(ts.spec.cores) +
                               (ts.spec.cores.empty() || ts.affinity_applied ? "" : " (FAILED)");
-    const char* policy = ts.spec.priority == 0 ? "OTHER" : (ts.fifo_applied ? "FIFO" : "OTHER(!)");
+    const char* policy = ts.spec.priority == 0 ? "OTHER"
+                         : ts.fifo_applied     ? "FIFO"
+                         : options_.lossless   ? "OTHER(lossless)"
+                                               : "OTHER(!)";
     RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8d %-12s %-8s %-8d %d", kThreadNames[i], ts.tid,
                     cores.c_str(), policy, ts.fifo_applied ? ts.spec.priority : 0,
                     ts.nice_applied ? ts.spec.nice : 0);

@@ -359,13 +359,39 @@ TEST(Pipeline, TrackerAffinityAndPriorityAreApplied) {
   CountingSource source(5);
   AffinityProbe tracker;
   IdleMapper mapper;
-  PipelineOptions o = small_options(true);
+  PipelineOptions o = small_options(false);  // real-time policy: priorities apply
   o.threads.tracker.cores = {0};
   o.threads.tracker.priority = 10;  // SCHED_FIFO if permitted, otherwise a warning
   replay_source(source, tracker, mapper, o);
   EXPECT_TRUE(tracker.only_core0_);
   // Either FIFO was granted or the thread fell back to normal scheduling; never anything else.
   EXPECT_TRUE(tracker.policy_ == SCHED_FIFO || tracker.policy_ == SCHED_OTHER) << tracker.policy_;
+  const bool fifo_permitted = [] {
+    sched_param sp{};
+    sp.sched_priority = 10;
+    pthread_attr_t a;
+    pthread_attr_init(&a);
+    pthread_attr_setinheritsched(&a, PTHREAD_EXPLICIT_SCHED);
+    pthread_attr_setschedpolicy(&a, SCHED_FIFO);
+    pthread_attr_setschedparam(&a, &sp);
+    pthread_t t;
+    const int rc = pthread_create(
+        &t, &a, [](void*) -> void* { return nullptr; }, nullptr);
+    pthread_attr_destroy(&a);
+    if (rc == 0) pthread_join(t, nullptr);
+    return rc == 0;
+  }();
+  if (fifo_permitted) {
+    EXPECT_EQ(tracker.policy_, SCHED_FIFO) << "permitted here, so applied";
+  }
+
+  // A lossless replay never runs at SCHED_FIFO: it would hold its cores for the whole run.
+  CountingSource source2(5);
+  AffinityProbe tracker2;
+  o.lossless = true;
+  replay_source(source2, tracker2, mapper, o);
+  EXPECT_TRUE(tracker2.only_core0_);
+  EXPECT_EQ(tracker2.policy_, SCHED_OTHER);
 }
 
 // Raising a thread's nice value is always permitted: the mapper runs at the configured
