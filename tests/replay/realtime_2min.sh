@@ -11,8 +11,9 @@
 # cost (20-40 ms per frame) is not in the real-time run; the capture thread still decodes one
 # PNG per frame (as a webcam's MJPEG frames are decoded), which is part of the pipeline.
 #
-# Usage: tests/replay/realtime_2min.sh [-b RDSLAM] [-s SEQ_DIR] [-o OUT_DIR] [-n SCENARIO]
+# Usage: tests/replay/realtime_2min.sh [-b RDSLAM] [-s SEQ_DIR] [-o OUT_DIR] [-n SCENARIO] [-c]
 #                                      [-- extra rdslam replay args, e.g. --set threads.x=y]
+#   -c       cold cache: drop the sequence's frames from the page cache first (worst case)
 #   RDSLAM   default: build/firmware_app/rdslam (relative to the repo root)
 #   SEQ_DIR  default: /tmp/rdslam_rt2min/<scenario>_3600 (rendered when missing)
 #   OUT_DIR  default: /tmp/rdslam_rt2min/run-<UTC time>
@@ -22,6 +23,7 @@ repo="$(cd "$(dirname "$0")/../.." && pwd)"
 rdslam="$repo/build/firmware_app/rdslam"
 scenario=static_xyz
 seq=""
+cold=0
 out=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -29,8 +31,9 @@ while [[ $# -gt 0 ]]; do
     -s) seq="$2"; shift 2 ;;
     -o) out="$2"; shift 2 ;;
     -n) scenario="$2"; shift 2 ;;
+    -c) cold=1; shift ;;
     --) shift; break ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    -h|--help) awk 'NR > 1 && /^#/ { print } /^set /{ exit }' "$0"; exit 0 ;;
     *) echo "unknown argument: $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -50,6 +53,16 @@ if [[ ! -f "$seq/rgb.txt" || $(grep -vc '^#' "$seq/rgb.txt") -ne $frames ]]; the
 fi
 
 mkdir -p "$out"
+if [[ $cold -eq 1 ]]; then
+  python3 - "$seq/rgb" <<'PY'
+import glob, os, sys
+for path in glob.glob(os.path.join(sys.argv[1], "*")):
+    fd = os.open(path, os.O_RDONLY)
+    os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+    os.close(fd)
+PY
+  echo "page cache: frames of $seq dropped"
+fi
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg) on $(nproc) cores"
 "$rdslam" replay "tum:$seq" --realtime --report "$out/report.json" \
   --timings "$out/frames.csv" "$@" >"$out/summary.txt" 2>"$out/log.txt"
