@@ -35,7 +35,6 @@ class FastDetector {
 
  private:
   std::vector<uint8_t> score_rows_;  // 3 rows of scores (ring), clamped to 255
-  std::vector<uint8_t> cand_;        // per pixel of a row: passes the 4-point pre-test
   std::vector<int16_t> row_corners_[3];
 };
 
