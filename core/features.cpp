@@ -41,6 +41,11 @@ std::vector<int> make_pattern() {
   return p;
 }
 
+// Multiplicative hash of a corner position (Knuth's golden-ratio constants).
+inline uint32_t position_hash(const FastCorner& c) {
+  return (static_cast<uint32_t>(c.x) * 2654435761u) ^ (static_cast<uint32_t>(c.y) * 2246822519u);
+}
+
 }  // namespace
 
 void FeatureParams::visit(ParamVisitor& v) {
@@ -266,9 +271,14 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
     blur_.apply(img, blurred_[l]);
     // Corners at least kEdge from the border, so rotated BRIEF tests stay inside the image.
     fast_.detect(img, params_.fast_threshold, kEdge, fast_buf_);
-    // Strongest first; ties by position so the order is a total order (deterministic).
+    // Strongest first. FAST scores are small integers, so ties are common and decide which
+    // cells get a corner at the quota cut below: ties are broken by a hash of the position
+    // (a deterministic total order without favouring any image region, as a raster order
+    // would favour the top rows).
     std::sort(fast_buf_.begin(), fast_buf_.end(), [](const FastCorner& a, const FastCorner& b) {
       if (a.score != b.score) return a.score > b.score;
+      const uint32_t ha = position_hash(a), hb = position_hash(b);
+      if (ha != hb) return ha < hb;
       return a.y != b.y ? a.y < b.y : a.x < b.x;
     });
     // Grid bucketing: rank each corner within its cell (strongest first) and keep corners in
