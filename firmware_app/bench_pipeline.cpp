@@ -153,7 +153,7 @@ int bench_pipeline(int argc, char** argv) {
   double frames_opt = 0;
   ArgParser p(
       "rdslam bench pipeline SOURCE [--json] [--config F] [--set K=V ...] [--frames N] "
-      "[--single-thread] [--async-mapper]",
+      "[--single-thread] [--async-mapper] [--no-preload]",
       "Run the SLAM pipeline on SOURCE as fast as possible (lossless: no frame dropped) and\n"
       "report per-stage times (p50, p99), throughput fps, capture-to-publish latency and\n"
       "peak RSS (issue 10). Feature mode: --set features.mode=orb|sift.\n"
@@ -162,7 +162,8 @@ int bench_pipeline(int argc, char** argv) {
   p.positional("SOURCE", &uri, "frame source URI, e.g. synth:static_xyz or kitti:DIR");
   p.config_options(&config_path, &overrides);
   p.flag("--json", &json,
-         "print JSON: the common report keys plus stages {tracker, mapper, capture, publish}");
+         "print JSON: the common report keys plus stages {tracker, tracker_cpu, mapper, capture,\n"
+         "publish; threaded: tracker_total, tracker_wait}");
   p.option("--frames", &frames_opt, "N", "process at most N frames (default: all)");
   p.flag("--no-preload", &no_preload,
          "read SOURCE while timing (capture then includes rendering or decoding)");
