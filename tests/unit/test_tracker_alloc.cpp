@@ -17,6 +17,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <opencv2/imgproc.hpp>
 
 #include "core/slam.h"
 #include "drivers/synth_source.h"
@@ -38,6 +39,14 @@ TEST(TrackerAlloc, CountingAllocatorSeesAllocations) {
   EXPECT_GE(g_malloc_calls.load() - m0, 3u);
   delete v;
   std::free(p);
+  // Allocations inside OpenCV (cv::fastMalloc) are seen too: a new output image.
+  const cv::Mat img(48, 64, CV_8UC1, cv::Scalar(7));
+  const uint64_t m1 = g_malloc_calls.load();
+  {
+    cv::Mat out;
+    cv::GaussianBlur(img, out, cv::Size(7, 7), 2.0);
+  }
+  EXPECT_GE(g_malloc_calls.load() - m1, 1u);
 #endif
 }
 
