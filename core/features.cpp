@@ -41,6 +41,11 @@ std::vector<int> make_pattern() {
   return p;
 }
 
+// Multiplicative hash of a corner position (Knuth's golden-ratio constants).
+inline uint32_t position_hash(const FastCorner& c) {
+  return (static_cast<uint32_t>(c.x) * 2654435761u) ^ (static_cast<uint32_t>(c.y) * 2246822519u);
+}
+
 }  // namespace
 
 void FeatureParams::visit(ParamVisitor& v) {
@@ -55,6 +60,8 @@ void FeatureParams::visit(ParamVisitor& v) {
   v.field("sift_ratio", sift_ratio, 0.1, 1.0, "paper Sec. 3: SIFT matching confidence c < 0.6");
   v.field("orb_max_distance", orb_max_distance, 1, 256, "max Hamming distance of a match");
   v.field("sift_max_distance", sift_max_distance, 1.0, 1000.0, "max L2 distance of a SIFT match");
+  v.field("sift_first_octave", sift_first_octave, -1, 0,
+          "SIFT first octave: 0 image resolution (SiftGPU default), -1 upsampled 2x (slow)");
 }
 
 std::string FeatureParams::validate() const {
@@ -174,6 +181,10 @@ FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraMode
   level_scale_.resize(L);
   level_quota_.resize(L);
   pyramid_.resize(L);
+  resize_.resize(L);
+  // A cell holds at most one suppressed FAST maximum per 2x2 pixels: rank histogram bound.
+  const int half_cell = params_.grid_cell_px / 2 + 1;
+  rank_hist_.reserve(static_cast<size_t>(half_cell) * half_cell + 2);
   blurred_.resize(L);
   rot_off_.resize(L);
   rot_step_.assign(L, -1);
@@ -251,35 +262,33 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
   for (int l = 1; l < L; ++l) {
     const cv::Size sz(static_cast<int>(std::lround(gray.cols / level_scale_[l])),
                       static_cast<int>(std::lround(gray.rows / level_scale_[l])));
-    cv::resize(pyramid_[l - 1], pyramid_[l], sz, 0, 0, cv::INTER_LINEAR);
+    resize_[l].apply(pyramid_[l - 1], pyramid_[l], sz);
   }
   const int cell = params_.grid_cell_px;
   for (int l = 0; l < L; ++l) {
     const cv::Mat& img = pyramid_[l];
     if (img.cols <= 2 * kEdge + 1 || img.rows <= 2 * kEdge + 1) continue;
-    cv::GaussianBlur(img, blurred_[l], cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
-    fast_buf_.clear();
-    cv::FAST(img, fast_buf_, params_.fast_threshold, true);
-    // Drop corners too close to the border for the descriptor.
-    size_t k = 0;
-    for (size_t i = 0; i < fast_buf_.size(); ++i) {
-      const auto& p = fast_buf_[i].pt;
-      if (p.x >= kEdge && p.y >= kEdge && p.x < img.cols - kEdge && p.y < img.rows - kEdge) {
-        fast_buf_[k++] = fast_buf_[i];
-      }
-    }
-    fast_buf_.resize(k);
-    std::sort(fast_buf_.begin(), fast_buf_.end(),
-              [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
+    blur_.apply(img, blurred_[l]);
+    // Corners at least kEdge from the border, so rotated BRIEF tests stay inside the image.
+    fast_.detect(img, params_.fast_threshold, kEdge, fast_buf_);
+    // Strongest first. FAST scores are small integers, so ties are common and decide which
+    // cells get a corner at the quota cut below: ties are broken by a hash of the position
+    // (a deterministic total order without favouring any image region, as a raster order
+    // would favour the top rows).
+    std::sort(fast_buf_.begin(), fast_buf_.end(), [](const FastCorner& a, const FastCorner& b) {
+      if (a.score != b.score) return a.score > b.score;
+      const uint32_t ha = position_hash(a), hb = position_hash(b);
+      if (ha != hb) return ha < hb;
+      return a.y != b.y ? a.y < b.y : a.x < b.x;
+    });
     // Grid bucketing: rank each corner within its cell (strongest first) and keep corners in
     // rank order, so weak cells are served before strong cells get their second corner.
     const int gc = (img.cols + cell - 1) / cell, gr = (img.rows + cell - 1) / cell;
     cell_count_.assign(static_cast<size_t>(gc) * gr, 0);
-    if (rank_buf_.size() < fast_buf_.size()) rank_buf_.resize(fast_buf_.size());
+    if (rank_buf_.size() < fast_buf_.size()) rank_buf_.resize(fast_buf_.capacity());
     int max_rank = 0;
     for (size_t i = 0; i < fast_buf_.size(); ++i) {
-      const int c = static_cast<int>(fast_buf_[i].pt.y) / cell * gc +
-                    static_cast<int>(fast_buf_[i].pt.x) / cell;
+      const int c = fast_buf_[i].y / cell * gc + fast_buf_[i].x / cell;
       rank_buf_[i] = cell_count_[c]++;
       max_rank = std::max(max_rank, rank_buf_[i]);
     }
@@ -299,8 +308,8 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
           --room_at_cut;
         }
         if (out.count >= static_cast<int>(out.kps.size())) break;
-        const cv::KeyPoint& kp = fast_buf_[i];
-        const int x = static_cast<int>(kp.pt.x), y = static_cast<int>(kp.pt.y);
+        const FastCorner& kp = fast_buf_[i];
+        const int x = kp.x, y = kp.y;
         // Intensity centroid orientation (Rosin), circular patch of radius 15.
         const uchar* center = img.ptr<uchar>(y) + x;
         const int step = static_cast<int>(img.step1());
@@ -345,10 +354,10 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
           d[byte] = val;
         }
         cv::KeyPoint& o = out.kps[out.count];
-        o.pt = cv::Point2f(kp.pt.x * level_scale_[l], kp.pt.y * level_scale_[l]);
+        o.pt = cv::Point2f(x * level_scale_[l], y * level_scale_[l]);
         o.size = 31.f * level_scale_[l];
         o.angle = angle * 180.f / static_cast<float>(M_PI);
-        o.response = kp.response;
+        o.response = kp.score;
         o.octave = l;
         out.level[out.count] = l;
         out.scale[out.count] = level_scale_[l];
@@ -361,7 +370,25 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
 
 void FeatureExtractor::extract_sift(const cv::Mat& gray, Features& out) {
   sift_kps_.clear();
-  sift_->detectAndCompute(gray, cv::noArray(), sift_kps_, sift_desc_);
+  // OpenCV's SIFT always upsamples its input 2x (first octave -1); on the half-size image
+  // that is first octave 0 on the full-size image (4x fewer pixels in the scale space).
+  const bool half = params_.sift_first_octave == 0 && gray.cols >= 64 && gray.rows >= 64;
+  if (half) {
+    cv::resize(gray, sift_half_, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+    sift_->detectAndCompute(sift_half_, cv::noArray(), sift_kps_, sift_desc_);
+    const float sx = float(gray.cols) / sift_half_.cols, sy = float(gray.rows) / sift_half_.rows;
+    for (cv::KeyPoint& kp : sift_kps_) {
+      // Pixel centres: half-size pixel u covers full-size pixels 2u and 2u+1.
+      kp.pt.x = (kp.pt.x + 0.5f) * sx - 0.5f;
+      kp.pt.y = (kp.pt.y + 0.5f) * sy - 0.5f;
+      kp.size *= sx;
+      // One octave finer in full-size terms (octave is packed in the low byte).
+      const int oct = kp.octave & 255;
+      kp.octave = (kp.octave & ~255) | ((oct + 1) & 255);
+    }
+  } else {
+    sift_->detectAndCompute(gray, cv::noArray(), sift_kps_, sift_desc_);
+  }
   const int n = std::min(static_cast<int>(sift_kps_.size()), static_cast<int>(out.kps.size()));
   for (int i = 0; i < n; ++i) {
     const cv::KeyPoint& kp = sift_kps_[i];

@@ -2,10 +2,14 @@
 //  - "orb" (fast default, for 25 fps on an ARM core): FAST corners on an image pyramid,
 //    bucketed over an image grid so features cover the whole view, intensity-centroid
 //    orientation and 256-bit steered BRIEF descriptors (rBRIEF, Rublee et al. 2011) from our
-//    own fixed test pattern. All buffers are preallocated; extract() does not allocate after
-//    the first frame of a given size (OpenCV's FAST keeps a small internal buffer).
+//    own fixed test pattern. Pyramid, blur and FAST are our own (core/image_ops.h): all
+//    buffers are preallocated and extract() does not allocate after the first frame of a
+//    given size.
 //  - "sift" (the paper, Sec. 3): SIFT keypoints and 128-float descriptors (OpenCV SIFT), to be
 //    matched with a FLANN KD-tree and the ratio test c < 0.6. Allocates per frame (paper mode).
+//    With sift_first_octave = 0 (default) OpenCV's SIFT runs on the image downscaled 2x
+//    (INTER_AREA): its built-in 2x upsampling then restores the full resolution, which is
+//    SIFT with first octave 0; keypoints are scaled back to full-resolution pixels.
 //
 // Keypoint coordinates are stored twice: raw pixels (for image patches) and undistorted ideal
 // pixels (for geometry). A fixed spatial grid over the undistorted coordinates supports the
@@ -22,6 +26,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/image_ops.h"
 #include "core/params.h"
 
 namespace rdslam {
@@ -37,6 +42,10 @@ struct FeatureParams {
   double sift_ratio = 0.6;           // the paper's matching confidence c < 0.6 (Sec. 3)
   int orb_max_distance = 64;         // Hamming distance accepted for a match (of 256 bits)
   double sift_max_distance = 250.0;  // L2 distance accepted for a SIFT match (unit 512 norm)
+  // First SIFT octave: 0 = DoG scale space starts at the image resolution (SiftGPU's default,
+  // Wu 2007, the SIFT of RDSLAM's implementation); -1 = Lowe's 2x upsampled image (OpenCV's
+  // fixed choice; 4x the pixels, about 4x slower, adds only the finest-scale keypoints).
+  int sift_first_octave = 0;
 
   void visit(ParamVisitor& v);
   std::string validate() const;
@@ -114,7 +123,10 @@ class FeatureExtractor {
   std::vector<cv::Mat> pyramid_, blurred_;
   std::vector<float> level_scale_;
   std::vector<int> level_quota_;
-  std::vector<cv::KeyPoint> fast_buf_;
+  std::vector<BilinearResize> resize_;  // per level (its tables depend on the sizes)
+  GaussianBlur7 blur_{2.0};
+  FastDetector fast_;
+  std::vector<FastCorner> fast_buf_;
   std::vector<int> rank_buf_, cell_count_, rank_hist_;
   std::vector<int> umax_;
   std::vector<int> pattern_;               // 256 pairs: x0 y0 x1 y1
@@ -125,6 +137,7 @@ class FeatureExtractor {
   cv::Ptr<cv::SIFT> sift_;
   std::vector<cv::KeyPoint> sift_kps_;
   cv::Mat sift_desc_;
+  cv::Mat sift_half_;  // the 2x downscaled input for sift_first_octave = 0
 };
 
 }  // namespace rdslam

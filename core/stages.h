@@ -35,6 +35,7 @@ struct TrackResult {
   int map_points = 0;                   // valid map points (for status)
   int keyframes = 0;                    // valid keyframes (for status)
   int64_t invalidated_points = 0;       // cumulative
+  double mapper_wait_ms = 0.0;  // time track() blocked on the mapper (tracker.sync_mapper only)
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 

@@ -1,6 +1,7 @@
 #include "core/tracker.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -375,14 +376,17 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
 void Tracker::wait_for_mapper() {
   // Sync mode: block until the ring is empty and the mapper idle (bounded waits, so a
   // stopped mapper cannot hang the tracker for more than a few seconds).
+  const auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < 50; ++i) {
     const uint32_t ticket = link_->mapped.ticket();
     if (link_->candidates.size_approx() == 0 &&
         link_->mapper_busy.load(std::memory_order_acquire) == 0) {
-      return;
+      break;
     }
     link_->mapped.wait(ticket, 100);
   }
+  wait_ms_ +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void Tracker::fill_result(TrackResult& r) const {
@@ -397,11 +401,13 @@ void Tracker::fill_result(TrackResult& r) const {
   r.map_points = link_->points.load(std::memory_order_relaxed);
   r.keyframes = link_->keyframes.load(std::memory_order_relaxed);
   r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);
+  r.mapper_wait_ms = wait_ms_;
 }
 
 TrackResult Tracker::track(const Frame& frame) {
   ++frame_no_;
   ++track_no_;
+  wait_ms_ = 0.0;
   TrackResult result;
   const cv::Mat* img = &frame.image;
   if (frame.image.type() == CV_8UC3) {

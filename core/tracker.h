@@ -142,6 +142,7 @@ class Tracker {
   std::vector<float> level_scale_;
   TrackerStats stats_;
   int ref_kf_shared_ = 0, ref_kf_points_ = 0;
+  double wait_ms_ = 0.0;  // this frame's time in wait_for_mapper() (reported, not tracking)
 };
 
 }  // namespace rdslam

@@ -234,6 +234,16 @@ SourceStatus ImageFileSequence::load(int64_t index, cv::Mat& image) {
   if (index < 0 || index >= static_cast<int64_t>(items_.size())) {
     return SourceStatus::kEndOfStream;
   }
+  // Read-ahead before decoding: the kernel fetches the coming files while we decode.
+  const int64_t last =
+      std::min<int64_t>(index + kReadAhead, static_cast<int64_t>(items_.size()) - 1);
+  for (int64_t j = std::max(advised_ + 1, index + 1); j <= last; ++j) {
+    const int fd = ::open(items_[static_cast<size_t>(j)].path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) continue;  // reported when the frame itself is loaded
+    ::posix_fadvise(fd, 0, 0, POSIX_FADV_WILLNEED);
+    ::close(fd);
+  }
+  advised_ = std::max(advised_, last);
   return decoder_.decode(items_[static_cast<size_t>(index)].path, format_, width_, height_, image);
 }
 

@@ -117,6 +117,9 @@ class ImageFileDecoder {
 void probe_image(const std::string& path, int& width, int& height, PixelFormat& format);
 
 // A RecordedSequence over image files with known stamps (TUM, EuRoC, KITTI, folders).
+// load() asks the kernel to read the next kReadAhead files ahead (posix_fadvise WILLNEED,
+// asynchronous): a long sequence does not stay in the page cache on a busy machine, and a
+// paced replay's capture thread must not wait for the disk (docs/benchmarks.md).
 class ImageFileSequence : public RecordedSequence {
  public:
   struct Item {
@@ -127,9 +130,11 @@ class ImageFileSequence : public RecordedSequence {
       : items_(std::move(items)), format_(format), width_(width), height_(height) {}
   bool stamp(int64_t index, int64_t& stamp_ns) const override;
   SourceStatus load(int64_t index, cv::Mat& image) override;
+  static constexpr int64_t kReadAhead = 16;  // frames (about 0.5 s at 30 fps)
 
  private:
   std::vector<Item> items_;
+  int64_t advised_ = -1;  // highest index whose file was handed to the kernel's read-ahead
   PixelFormat format_;
   int width_, height_;
   ImageFileDecoder decoder_;

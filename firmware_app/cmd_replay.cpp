@@ -14,36 +14,12 @@
 #include "firmware_app/commands.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/plot.h"
+#include "firmware_app/progress.h"
 #include "firmware_app/report.h"
 
 namespace rdslam {
 
 namespace {
-
-// Progress bar on stderr from the publisher thread (at most every 1% of the frames).
-class ProgressSink : public PipelineSink {
- public:
-  explicit ProgressSink(int64_t total) : total_(total) {}
-  void on_frame(const FrameResult& r) override {
-    ++done_;
-    if (total_ <= 0 || done_ * 100 / total_ == shown_) return;
-    shown_ = done_ * 100 / total_;
-    const int width = 40;
-    const int filled = static_cast<int>(shown_ * width / 100);
-    char bar[64];
-    for (int i = 0; i < width; ++i) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    std::fprintf(stderr, "\r[%s] %3lld%% frame %lld/%lld %-12s", bar,
-                 static_cast<long long>(shown_), static_cast<long long>(done_),
-                 static_cast<long long>(total_), to_string(r.result.state));
-    if (done_ >= total_) std::fprintf(stderr, "\n");
-  }
-
- private:
-  int64_t total_;
-  int64_t done_ = 0;
-  int64_t shown_ = -1;
-};
 
 bool tracked(TrackingState s) {
   return s == TrackingState::kTracking || s == TrackingState::kRelocalized;
@@ -52,12 +28,12 @@ bool tracked(TrackingState s) {
 }  // namespace
 
 int cmd_replay(int argc, char** argv) {
-  std::string uri, config_path, traj_path, report_path, plot_path;
+  std::string uri, config_path, traj_path, report_path, plot_path, timings_path;
   std::vector<std::string> overrides;
   bool realtime = false;
   ArgParser p(
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
-      "[--plot OUT.png] [--realtime]",
+      "[--plot OUT.png] [--timings OUT.csv] [--realtime]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -66,6 +42,8 @@ int cmd_replay(int argc, char** argv) {
   p.option("--trajectory", &traj_path, "OUT.tum", "write the tracked poses (TUM format)");
   p.option("--report", &report_path, "OUT.json", "write the JSON report");
   p.option("--plot", &plot_path, "OUT.png", "write a top-view plot against ground truth");
+  p.option("--timings", &timings_path, "OUT.csv",
+           "write per-frame timings (seq, index, state, queue+track ms, latency ms)");
   p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
   // Ablation aliases of config keys (issue 8): the paper's Figures 9, 4-5 and 8.
   bool no_map_update = false, no_occlusion_handling = false;
@@ -93,7 +71,7 @@ int cmd_replay(int argc, char** argv) {
   options.params = cfg.pipeline;
   options.threads = cfg.threads;
   options.lossless = !realtime;
-  ProgressSink progress(source->info().frame_count);
+  ProgressSink progress(source->info().frame_count, stderr);
   const ReplayReport rr =
       replay_source(*source, *stages.tracker, *stages.mapper, options, {&progress});
 
@@ -132,6 +110,12 @@ int cmd_replay(int argc, char** argv) {
               rr.stages.tracker.percentile_ms(0.99));
   std::printf("  %-26s p50 %.2f  p99 %.2f\n", "latency ms", report.latency_p50_ms,
               report.latency_p99_ms);
+  const PipelineStatus& st = rr.status;
+  std::printf("  %-26s %llu (source skipped %llu, capture %llu, tracker %llu)\n", "dropped",
+              static_cast<unsigned long long>(st.frames_dropped),
+              static_cast<unsigned long long>(st.source_skipped),
+              static_cast<unsigned long long>(st.dropped_capture),
+              static_cast<unsigned long long>(st.dropped_tracker));
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
   if (report.ate_rmse_m) {
     std::printf("  %-26s %.4f m (%.3f%% of path)\n", "ATE rmse (Sim3)", *report.ate_rmse_m,
@@ -142,6 +126,18 @@ int cmd_replay(int argc, char** argv) {
   std::printf("  %-26s %.1f MiB\n", "peak RSS", report.peak_rss_mb);
 
   if (!traj_path.empty()) write_trajectory_tum(traj_path, est);
+  if (!timings_path.empty()) {
+    // Capture-to-publish latency of every published frame, split at track() return.
+    FILE* f = std::fopen(timings_path.c_str(), "w");
+    if (!f) throw std::runtime_error("cannot write " + timings_path);
+    std::fprintf(f, "seq,dataset_index,state,arrival_to_tracked_ms,latency_ms\n");
+    for (const auto& fr : rr.frames) {
+      std::fprintf(f, "%llu,%lld,%s,%.3f,%.3f\n", static_cast<unsigned long long>(fr.seq),
+                   static_cast<long long>(fr.dataset_index), to_string(fr.result.state),
+                   (fr.tracked_mono_ns - fr.arrival_mono_ns) * 1e-6, fr.latency_ns() * 1e-6);
+    }
+    std::fclose(f);
+  }
   if (!report_path.empty()) {
     JsonWriter w;
     w.begin_object();
@@ -153,6 +149,13 @@ int cmd_replay(int argc, char** argv) {
     w.begin_object("tracker_ms");
     w.value("p50", rr.stages.tracker.percentile_ms(0.5));
     w.value("p99", rr.stages.tracker.percentile_ms(0.99));
+    w.end_object();
+    w.begin_object("dropped");  // captured + source_skipped == processed + total
+    w.value("total", static_cast<int64_t>(st.frames_dropped));
+    w.value("source_skipped", static_cast<int64_t>(st.source_skipped));
+    w.value("capture", static_cast<int64_t>(st.dropped_capture));
+    w.value("tracker", static_cast<int64_t>(st.dropped_tracker));
+    w.value("publish_overflows", static_cast<int64_t>(st.publish_overflows));
     w.end_object();
     w.end_object();
     FILE* f = std::fopen(report_path.c_str(), "w");

@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -167,7 +168,14 @@ void Pipeline::setup_thread(PipelineThread which) {
                       to_string(which), cores_text(ts.spec.cores).c_str(), std::strerror(rc));
     }
   }
-  if (ts.spec.priority > 0) {
+  if (ts.spec.priority > 0 && options_.lossless) {
+    // A lossless replay runs as fast as the stages go, never waiting for a frame: at
+    // SCHED_FIFO its threads would hold their cores for the whole run (everything else on
+    // the machine starves but for the kernel's RT throttling). Real-time priorities are for
+    // paced and live runs, where they bound the latency (docs/benchmarks.md).
+    RDSLAM_LOG_INFO("threads.%s_priority: %d not applied in a lossless replay (normal scheduling)",
+                    to_string(which), ts.spec.priority);
+  } else if (ts.spec.priority > 0) {
     sched_param sp{};
     sp.sched_priority = ts.spec.priority;
     const int rc = pthread_setschedparam(self, SCHED_FIFO, &sp);
@@ -178,6 +186,20 @@ void Pipeline::setup_thread(PipelineThread which) {
           "with normal scheduling. Grant CAP_SYS_NICE or LimitRTPRIO=%d (systemd) to enable it",
           to_string(which), ts.spec.priority, std::strerror(rc), to_string(which),
           ts.spec.priority);
+    }
+  }
+  if (ts.spec.nice != 0 && !ts.fifo_applied) {
+    // Linux: nice is per thread (setpriority on the thread id). A mapper at nice > 0 leaves
+    // the tracker the CPU it needs when both share a core (2-core boards).
+    errno = 0;
+    const int rc =
+        setpriority(PRIO_PROCESS, static_cast<id_t>(ts.tid), ts.spec.nice) == 0 ? 0 : errno;
+    ts.nice_applied = rc == 0;
+    if (rc != 0) {
+      RDSLAM_LOG_WARN(
+          "threads.%s_nice: nice %d not permitted (%s); the %s thread keeps nice 0. Negative "
+          "values need CAP_SYS_NICE or LimitNICE= (systemd)",
+          to_string(which), ts.spec.nice, std::strerror(rc), to_string(which));
     }
   }
 }
@@ -226,15 +248,19 @@ void Pipeline::log_thread_table() const {
                   pool_.frame(0).image.cols, pool_.frame(0).image.rows,
                   options_.lossless ? "lossless (replay speed 0)" : "newest frame wins",
                   source_.info().uri.c_str());
-  RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8s %-12s %-8s %s", "thread", "tid", "cores", "policy",
-                  "priority");
+  RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8s %-12s %-8s %-8s %s", "thread", "tid", "cores",
+                  "policy", "priority", "nice");
   for (int i = 0; i < kPipelineThreads; ++i) {
     const ThreadState& ts = threads_[i];
     const std::string cores = cores_text(ts.spec.cores) +
                               (ts.spec.cores.empty() || ts.affinity_applied ? "" : " (FAILED)");
-    const char* policy = ts.spec.priority == 0 ? "OTHER" : (ts.fifo_applied ? "FIFO" : "OTHER(!)");
-    RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8d %-12s %-8s %d", kThreadNames[i], ts.tid,
-                    cores.c_str(), policy, ts.fifo_applied ? ts.spec.priority : 0);
+    const char* policy = ts.spec.priority == 0 ? "OTHER"
+                         : ts.fifo_applied     ? "FIFO"
+                         : options_.lossless   ? "OTHER(lossless)"
+                                               : "OTHER(!)";
+    RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8d %-12s %-8s %-8d %d", kThreadNames[i], ts.tid,
+                    cores.c_str(), policy, ts.fifo_applied ? ts.spec.priority : 0,
+                    ts.nice_applied ? ts.spec.nice : 0);
   }
 }
 
@@ -284,6 +310,9 @@ void Pipeline::capture_loop() {
       source_faults_.fetch_add(1, std::memory_order_relaxed);
     }
   }
+  // Frames a paced source passed over after the last delivered one (it fell behind at the
+  // end) complete the books too; stored before end of stream so the final status has them.
+  source_skipped_.store(source_.counters().skipped, std::memory_order_relaxed);
   // A slot still in our hands is simply not returned: the pool dies with the pipeline.
   frames_.try_push(SlotRing::kEndOfStream);
   frames_bell_.ring();
@@ -481,10 +510,10 @@ void Pipeline::build_status(PipelineStatus& s, int64_t now_ns, bool final_report
   s.frames_processed = processed;
   s.dropped_capture = dropped_capture_.load(std::memory_order_relaxed);
   s.dropped_tracker = dropped_tracker_.load(std::memory_order_relaxed);
-  s.frames_dropped = s.dropped_capture + s.dropped_tracker;
   s.source_faults = source_faults_.load(std::memory_order_relaxed);
   s.source_timeouts = source_timeouts_.load(std::memory_order_relaxed);
   s.source_skipped = source_skipped_.load(std::memory_order_relaxed);
+  s.frames_dropped = s.source_skipped + s.dropped_capture + s.dropped_tracker;
   s.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
   s.frames_published = published_.load(std::memory_order_acquire);
   s.last_seq = last_seq_.load(std::memory_order_relaxed);
@@ -514,12 +543,13 @@ void Pipeline::publish_status(int64_t now_ns, bool final_report) {
                         final_report ? " (total)" : "", to_string(s.state), s.fps,
                         static_cast<unsigned long long>(s.frames_captured),
                         static_cast<unsigned long long>(s.frames_processed));
-  n += std::snprintf(line + n, sizeof(line) - n, " dropped %llu (capture %llu, tracker %llu)",
+  n += std::snprintf(line + n, sizeof(line) - n,
+                     " dropped %llu (source skipped %llu, capture %llu, tracker %llu)",
                      static_cast<unsigned long long>(s.frames_dropped),
+                     static_cast<unsigned long long>(s.source_skipped),
                      static_cast<unsigned long long>(s.dropped_capture),
                      static_cast<unsigned long long>(s.dropped_tracker));
-  n += std::snprintf(line + n, sizeof(line) - n, " source skipped %llu faults %llu overflows %llu",
-                     static_cast<unsigned long long>(s.source_skipped),
+  n += std::snprintf(line + n, sizeof(line) - n, " faults %llu overflows %llu",
                      static_cast<unsigned long long>(s.source_faults),
                      static_cast<unsigned long long>(s.publish_overflows));
   n += std::snprintf(line + n, sizeof(line) - n,

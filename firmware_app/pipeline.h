@@ -75,13 +75,17 @@ struct PipelineStatus {
   double tracker_p50_ms = 0, tracker_p99_ms = 0;  // TrackerStage::track()
   uint64_t frames_captured = 0;
   uint64_t frames_processed = 0;
-  uint64_t frames_dropped = 0;   // dropped_capture + dropped_tracker
+  // Every frame the source had that was not processed: source_skipped + dropped_capture +
+  // dropped_tracker, so that at the end
+  //   frames_captured + source_skipped == frames_processed + frames_dropped
+  // (frames_captured counts what the capture thread received; skipped frames never reach it).
+  uint64_t frames_dropped = 0;
   uint64_t dropped_capture = 0;  // evicted by capture: no free slot (tracker far behind)
   uint64_t dropped_tracker = 0;  // skipped by the tracker: a newer frame was queued
   uint64_t source_faults = 0;
   uint64_t source_timeouts = 0;
   uint64_t source_skipped = 0;     // passed over by a paced replay source that fell behind
-  uint64_t publish_overflows = 0;  // results lost because the publisher ring was full
+  uint64_t publish_overflows = 0;  // processed, but the result was lost (publisher ring full)
   uint64_t frames_published = 0;   // results handed to the sinks
   uint64_t last_seq = 0;           // seq of the last processed frame
   int map_points = 0;
@@ -91,6 +95,8 @@ struct PipelineStatus {
 };
 
 // Live totals since start (any thread; each counter is exact, the set is not one instant).
+// After the run: captured + source_skipped == processed + dropped(), and
+// processed == published + publish_overflows.
 struct PipelineCounters {
   uint64_t captured = 0;
   uint64_t processed = 0;
@@ -101,6 +107,7 @@ struct PipelineCounters {
   uint64_t source_timeouts = 0;
   uint64_t source_skipped = 0;
   uint64_t publish_overflows = 0;
+  uint64_t dropped() const { return source_skipped + dropped_capture + dropped_tracker; }
 };
 
 // Whole-run stage timing (replay report, bench).
@@ -180,6 +187,7 @@ class Pipeline {
     int tid = 0;
     bool affinity_applied = false;
     bool fifo_applied = false;
+    bool nice_applied = false;
   };
 
   void thread_main(PipelineThread which);

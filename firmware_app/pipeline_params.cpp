@@ -20,17 +20,20 @@ void PipelineParams::visit(ParamVisitor& v) {
 }
 
 namespace {
-void visit_thread(ParamVisitor& v, ThreadSpec& t, const char* cores_key, const char* prio_key) {
+void visit_thread(ParamVisitor& v, ThreadSpec& t, const char* cores_key, const char* prio_key,
+                  const char* nice_key) {
   v.field(cores_key, t.cores, 0, 1023, "CPU cores the thread may run on; empty = any");
   v.field(prio_key, t.priority, 0, 99, "SCHED_FIFO priority; 0 = normal scheduling");
+  v.field(nice_key, t.nice, -20, 19,
+          "nice value under normal scheduling; > 0 yields CPU to the other threads");
 }
 }  // namespace
 
 void ThreadParams::visit(ParamVisitor& v) {
-  visit_thread(v, capture, "capture_cores", "capture_priority");
-  visit_thread(v, tracker, "tracker_cores", "tracker_priority");
-  visit_thread(v, mapper, "mapper_cores", "mapper_priority");
-  visit_thread(v, publisher, "publisher_cores", "publisher_priority");
+  visit_thread(v, capture, "capture_cores", "capture_priority", "capture_nice");
+  visit_thread(v, tracker, "tracker_cores", "tracker_priority", "tracker_nice");
+  visit_thread(v, mapper, "mapper_cores", "mapper_priority", "mapper_nice");
+  visit_thread(v, publisher, "publisher_cores", "publisher_priority", "publisher_nice");
 }
 
 }  // namespace rdslam

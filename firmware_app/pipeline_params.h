@@ -29,11 +29,14 @@ struct PipelineParams {
   void visit(ParamVisitor& v);
 };
 
-// One pipeline thread: the CPU cores it may run on (empty = any) and its SCHED_FIFO
-// priority (0 = normal SCHED_OTHER scheduling; 1..99 needs CAP_SYS_NICE or LimitRTPRIO).
+// One pipeline thread: the CPU cores it may run on (empty = any), its SCHED_FIFO priority
+// (0 = normal SCHED_OTHER scheduling; 1..99 needs CAP_SYS_NICE or LimitRTPRIO) and, under
+// SCHED_OTHER, its nice value (> 0 always permitted: yields CPU to the other threads;
+// < 0 needs CAP_SYS_NICE or LimitNICE).
 struct ThreadSpec {
   std::vector<int> cores;
   int priority = 0;
+  int nice = 0;
 };
 
 struct ThreadParams {

@@ -83,6 +83,54 @@ class CountingSource : public FrameSource {
   std::string reader_name_;
 };
 
+// Frames 0..count-1, unpaced; passes over (never delivers) every frame i with
+// i % every == every - 1 and the last `skip_tail` frames, counting them in
+// SourceCounters::skipped like a paced replay that fell behind. Exactly
+// skipped_expected() frames are skipped.
+class SkippingSource : public FrameSource {
+ public:
+  SkippingSource(uint64_t count, uint64_t every, uint64_t skip_tail)
+      : count_(count), every_(every), tail_(skip_tail) {
+    info_.uri = "fake:skipping";
+    info_.kind = "fake";
+    info_.width = 32;
+    info_.height = 24;
+    info_.live = true;
+    info_.frame_count = static_cast<int64_t>(count);
+  }
+  uint64_t skipped_expected() const {
+    uint64_t n = tail_;
+    for (uint64_t i = 0; i + tail_ < count_; ++i) n += skipped(i) ? 1 : 0;
+    return n;
+  }
+  SourceStatus read(Frame& out, int /*timeout_ms*/) override {
+    while (next_ + tail_ < count_ && skipped(next_)) {
+      ++next_;
+      ++counters_.skipped;
+    }
+    if (next_ + tail_ >= count_) {
+      counters_.skipped += count_ - next_;  // the tail: passed over at the very end
+      next_ = count_;
+      return SourceStatus::kEndOfStream;
+    }
+    out.seq = next_;
+    out.stamp_ns = static_cast<int64_t>(next_) * 1000000;
+    out.dataset_index = static_cast<int64_t>(next_);
+    ++next_;
+    ++counters_.delivered;
+    return SourceStatus::kOk;
+  }
+  const SourceInfo& info() const override { return info_; }
+  SourceCounters counters() const override { return counters_; }
+
+ private:
+  bool skipped(uint64_t i) const { return every_ > 0 && i % every_ == every_ - 1; }
+  SourceInfo info_;
+  uint64_t count_, every_, tail_;
+  uint64_t next_ = 0;
+  SourceCounters counters_;
+};
+
 // Delivers frame n only after the test called allow(n + 1); ends after `count` frames.
 class GatedSource : public FrameSource {
  public:

@@ -5,11 +5,20 @@
 #include <gtest/gtest.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <string>
 #include <thread>
 
+#include "drivers/replay_source.h"
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
+#include "firmware_app/progress.h"
 #include "tests/unit/pipeline_fakes.h"
 
 namespace rdslam {
@@ -21,6 +30,7 @@ using testing_fakes::GatedSource;
 using testing_fakes::IdleMapper;
 using testing_fakes::RecordingSink;
 using testing_fakes::ScriptedTracker;
+using testing_fakes::SkippingSource;
 
 PipelineOptions small_options(bool lossless) {
   PipelineOptions o;
@@ -128,6 +138,101 @@ TEST(Pipeline, SlowTrackerUnderLoadBalancesTheBooksAndEndsOnTheLastFrame) {
     ASSERT_GT(rep.frames[i].seq, rep.frames[i - 1].seq);
   }
   EXPECT_EQ(rep.frames.back().seq, 2999u) << "end of stream must not drop the newest frame";
+}
+
+// Drop accounting with every kind of drop: frames the source passed over (including after
+// its last delivered frame), evicted by capture and skipped by the tracker. Every frame the
+// source had is either processed or counted as dropped, exactly once.
+TEST(Pipeline, DropAccountingIncludesFramesTheSourceSkipped) {
+  SkippingSource source(3000, /*every=*/7, /*skip_tail=*/5);
+  ASSERT_EQ(source.skipped_expected(), 427u + 5u);  // frames 6, 13, .., 2988 and the tail
+  ScriptedTracker tracker;
+  tracker.set_spin_ns(200000);  // slower than the source: capture and tracker drops too
+  IdleMapper mapper;
+  RecordingSink sink;
+  const ReplayReport rep = replay_source(source, tracker, mapper, small_options(false), {&sink});
+  const PipelineStatus& s = rep.status;
+  EXPECT_EQ(s.source_skipped, source.skipped_expected());
+  EXPECT_EQ(s.frames_captured, 3000u - source.skipped_expected());
+  EXPECT_EQ(s.frames_dropped, s.source_skipped + s.dropped_capture + s.dropped_tracker);
+  EXPECT_EQ(s.frames_processed + s.frames_dropped, 3000u) << "every frame of the source";
+  EXPECT_EQ(s.frames_captured + s.source_skipped, s.frames_processed + s.frames_dropped);
+  EXPECT_EQ(s.frames_published + s.publish_overflows, s.frames_processed);
+  EXPECT_GT(s.dropped_capture + s.dropped_tracker, 0u) << "the tracker is the slower stage";
+  EXPECT_EQ(sink.last_status_.frames_dropped, s.frames_dropped) << "final status to sinks";
+  ASSERT_FALSE(rep.frames.empty());
+  EXPECT_EQ(rep.frames.back().seq, 2994u) << "the last delivered frame is processed";
+}
+
+// The real paced replay source whose frames take longer to load than the frame period: it
+// falls behind and skips (newest due frame wins); the books still balance.
+TEST(Pipeline, PacedReplaySourceThatFallsBehindBalancesTheBooks) {
+  class SlowSequence : public RecordedSequence {
+   public:
+    bool stamp(int64_t index, int64_t& stamp_ns) const override {
+      if (index < 0 || index >= 400) return false;
+      stamp_ns = index * 1000000;  // 1 kHz
+      return true;
+    }
+    SourceStatus load(int64_t index, cv::Mat& image) override {
+      if (index >= 400) return SourceStatus::kEndOfStream;
+      image.create(24, 32, CV_8UC1);
+      image.setTo(static_cast<int>(index % 256));
+      const int64_t until = mono_now_ns() + 2000000;  // 2 ms: slower than the 1 ms period
+      while (mono_now_ns() < until) {
+      }
+      return SourceStatus::kOk;
+    }
+  };
+  SourceInfo info;
+  info.uri = "fake:slow";
+  info.kind = "fake";
+  info.width = 32;
+  info.height = 24;
+  info.frame_count = 400;
+  ReplaySource source(std::make_unique<SlowSequence>(), info, std::nullopt, std::nullopt, 1.0);
+  ScriptedTracker tracker;
+  IdleMapper mapper;
+  const ReplayReport rep = replay_source(source, tracker, mapper, small_options(false));
+  const PipelineStatus& s = rep.status;
+  EXPECT_GT(s.source_skipped, 0u) << "loading takes twice the frame period";
+  EXPECT_EQ(s.source_skipped, source.counters().skipped);
+  EXPECT_EQ(s.frames_captured + s.source_skipped, 400u);
+  EXPECT_EQ(s.frames_processed + s.frames_dropped, 400u);
+  EXPECT_EQ(s.frames_dropped, s.source_skipped + s.dropped_capture + s.dropped_tracker);
+}
+
+// Progress output: a bar redrawn in place on a terminal, plain lines every 10% otherwise.
+TEST(Pipeline, ProgressPrintsPlainLinesWhenNotATerminal) {
+  for (const bool terminal : {false, true}) {
+    std::FILE* f = std::tmpfile();
+    ASSERT_NE(f, nullptr);
+    ProgressSink progress(200, f, terminal);
+    FrameResult r;
+    for (int i = 0; i < 200; ++i) {
+      if (i % 3 == 2) continue;  // dropped frames: the position follows the dataset index
+      r.seq = static_cast<uint64_t>(i);
+      r.dataset_index = i;
+      progress.on_frame(r);
+    }
+    std::rewind(f);
+    std::string text;
+    char buf[256];
+    size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
+    std::fclose(f);
+    const auto count = [&](char c) { return std::count(text.begin(), text.end(), c); };
+    if (terminal) {
+      EXPECT_GT(count('\r'), 50) << "redrawn in place";
+      EXPECT_EQ(count('\n'), 1) << "one newline when done";
+      EXPECT_NE(text.find("100% frame 200/200"), std::string::npos) << text;
+    } else {
+      EXPECT_EQ(count('\r'), 0) << text;
+      EXPECT_EQ(count('\n'), 11) << "0%, 10%, ..., 100%: " << text;
+      EXPECT_NE(text.find("replay:  50% frame 100/200"), std::string::npos) << text;
+      EXPECT_NE(text.find("replay: 100% frame 200/200"), std::string::npos) << text;
+    }
+  }
 }
 
 TEST(Pipeline, StopRequestEndsALiveSourceWithinTwoSeconds) {
@@ -254,13 +359,65 @@ TEST(Pipeline, TrackerAffinityAndPriorityAreApplied) {
   CountingSource source(5);
   AffinityProbe tracker;
   IdleMapper mapper;
-  PipelineOptions o = small_options(true);
+  PipelineOptions o = small_options(false);  // real-time policy: priorities apply
   o.threads.tracker.cores = {0};
   o.threads.tracker.priority = 10;  // SCHED_FIFO if permitted, otherwise a warning
   replay_source(source, tracker, mapper, o);
   EXPECT_TRUE(tracker.only_core0_);
   // Either FIFO was granted or the thread fell back to normal scheduling; never anything else.
   EXPECT_TRUE(tracker.policy_ == SCHED_FIFO || tracker.policy_ == SCHED_OTHER) << tracker.policy_;
+  const bool fifo_permitted = [] {
+    sched_param sp{};
+    sp.sched_priority = 10;
+    pthread_attr_t a;
+    pthread_attr_init(&a);
+    pthread_attr_setinheritsched(&a, PTHREAD_EXPLICIT_SCHED);
+    pthread_attr_setschedpolicy(&a, SCHED_FIFO);
+    pthread_attr_setschedparam(&a, &sp);
+    pthread_t t;
+    const int rc = pthread_create(
+        &t, &a, [](void*) -> void* { return nullptr; }, nullptr);
+    pthread_attr_destroy(&a);
+    if (rc == 0) pthread_join(t, nullptr);
+    return rc == 0;
+  }();
+  if (fifo_permitted) {
+    EXPECT_EQ(tracker.policy_, SCHED_FIFO) << "permitted here, so applied";
+  }
+
+  // A lossless replay never runs at SCHED_FIFO: it would hold its cores for the whole run.
+  CountingSource source2(5);
+  AffinityProbe tracker2;
+  o.lossless = true;
+  replay_source(source2, tracker2, mapper, o);
+  EXPECT_TRUE(tracker2.only_core0_);
+  EXPECT_EQ(tracker2.policy_, SCHED_OTHER);
+}
+
+// Raising a thread's nice value is always permitted: the mapper runs at the configured
+// nice, the other threads keep the process's.
+class NiceProbeMapper : public MapperStage {
+ public:
+  bool step(int timeout_ms) override {
+    errno = 0;
+    nice_ = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(std::min(timeout_ms, 5)));
+    return false;
+  }
+  std::atomic<int> nice_{-100};
+};
+
+TEST(Pipeline, MapperNiceIsApplied) {
+  CountingSource source(5);
+  ScriptedTracker tracker;
+  NiceProbeMapper mapper;
+  PipelineOptions o = small_options(true);
+  const int base = getpriority(PRIO_PROCESS, 0);
+  o.threads.mapper.nice = std::min(base + 7, 19);
+  replay_source(source, tracker, mapper, o);
+  EXPECT_EQ(mapper.nice_.load(), std::min(base + 7, 19));
+  EXPECT_EQ(getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))), base)
+      << "only the mapper thread changed";
 }
 
 TEST(Pipeline, PeriodicStatusIsPublishedAndFinalStatusSummarisesTheRun) {

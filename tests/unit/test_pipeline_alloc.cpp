@@ -1,9 +1,8 @@
 // Zero heap allocation on the capture-to-publish path in steady state (issue 9, item 3).
 //
-// This binary replaces the global operator new/delete AND interposes the C allocator
-// (malloc, calloc, realloc, posix_memalign, aligned_alloc, memalign) with counting versions
-// that forward to glibc, so allocations made inside C libraries (LCM, glib, OpenCV's
-// fastMalloc) are counted too, on every thread of the process.
+// This binary counts every allocation of every thread (tests/unit/alloc_counting.h: global
+// operator new/delete and the C allocator, so LCM, glib and OpenCV's fastMalloc count too).
+// The same proof with the real SLAM tracker is tests/unit/test_tracker_alloc.cpp.
 //
 // Measured window: from the moment the publisher hands frame kWarmup to the sinks until it
 // hands frame kWarmup + kMeasured - 1, i.e. kMeasured = 1,000 frames that each went through
@@ -20,121 +19,15 @@
 // - the test's own main thread, which only waits on a condition variable inside the window.
 // Nothing inside the window is excluded.
 #include <gtest/gtest.h>
-#include <malloc.h>
-#include <unistd.h>
 
-#include <atomic>
 #include <condition_variable>
-#include <cstdlib>
 #include <mutex>
-#include <new>
 
 #include "firmware_app/lcm_publisher.h"
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
+#include "tests/unit/alloc_counting.h"
 #include "tests/unit/pipeline_fakes.h"
-
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define RDSLAM_ALLOC_COUNTING 0  // sanitizers own the allocator; counting is meaningless there
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define RDSLAM_ALLOC_COUNTING 0
-#else
-#define RDSLAM_ALLOC_COUNTING 1
-#endif
-#else
-#define RDSLAM_ALLOC_COUNTING 1
-#endif
-
-namespace {
-std::atomic<uint64_t> g_new_calls{0};     // operator new / new[]
-std::atomic<uint64_t> g_malloc_calls{0};  // every C-level allocation (includes new's malloc)
-}  // namespace
-
-#if RDSLAM_ALLOC_COUNTING
-extern "C" {
-void* __libc_malloc(size_t);
-void* __libc_calloc(size_t, size_t);
-void* __libc_realloc(void*, size_t);
-void* __libc_memalign(size_t, size_t);
-void __libc_free(void*);
-
-void* malloc(size_t n) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  return __libc_malloc(n);
-}
-void* calloc(size_t a, size_t b) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  return __libc_calloc(a, b);
-}
-void* realloc(void* p, size_t n) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  return __libc_realloc(p, n);
-}
-void free(void* p) {
-  __libc_free(p);
-}
-void* memalign(size_t align, size_t n) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  return __libc_memalign(align, n);
-}
-void* aligned_alloc(size_t align, size_t n) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  return __libc_memalign(align, n);
-}
-int posix_memalign(void** out, size_t align, size_t n) {
-  g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
-  void* p = __libc_memalign(align, n);
-  if (!p) return ENOMEM;
-  *out = p;
-  return 0;
-}
-}  // extern "C"
-
-void* operator new(size_t n) {
-  g_new_calls.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](size_t n) {
-  g_new_calls.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(size_t n, std::align_val_t a) {
-  g_new_calls.fetch_add(1, std::memory_order_relaxed);
-  void* p = nullptr;
-  if (posix_memalign(&p, static_cast<size_t>(a), n ? n : 1) == 0) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](size_t n, std::align_val_t a) {
-  return operator new(n, a);
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, size_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, size_t) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::align_val_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, std::align_val_t) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, size_t, std::align_val_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, size_t, std::align_val_t) noexcept {
-  std::free(p);
-}
-#endif
 
 namespace rdslam {
 namespace {
