@@ -5,11 +5,13 @@
 //    and global exposure changes): initialized within 30 frames, >= 98% of the frames after
 //    initialization tracked, ATE (Sim3) <= 0.5% of the path (issue 8's bars, met);
 //  - rigid_object (the paper's moving book, Figures 6-8): the same pipeline with only the
-//    estimator swapped (PARSAC vs RANSAC). Issue 8 asks for ATE <= 0.5% with PARSAC and
-//    RANSAC >= 3x worse or lost; NOT met yet. Measured (ORB, 300 frames): PARSAC 0.0102 m =
-//    0.518% of the path, RANSAC 0.0173 m = 0.876% (1.69x). The asserted bars are the ones this
-//    implementation meets: PARSAC <= 0.6%, RANSAC >= 1.5x worse (before the tracker fix both
-//    estimators gave the same 4.07%: the estimator did not matter, see docs/slam.md).
+//    estimator swapped (PARSAC vs RANSAC). The book carries more of the tracker's features
+//    than the static background when it starts moving (tests/unit/test_synth.cpp checks the
+//    premise). Issue 8 asks for ATE <= 0.5% with PARSAC and RANSAC >= 3x worse or lost.
+//    Measured (ORB, 300 frames): PARSAC 0.0108 m = 0.539% of the path (bar NOT met: the pose
+//    follows the book for ~7 frames when it starts moving, while its displacement is within
+//    the inlier gate), RANSAC 0.0350 m = 1.739% (3.24x, met). Asserted: PARSAC <= 0.6%,
+//    RANSAC >= 3x worse or lost.
 // Deterministic offline runs (core/slam.h run_offline), one per scenario and estimator,
 // shared between the assertions.
 #include <gtest/gtest.h>
@@ -69,7 +71,7 @@ TEST(SlamDynamic, RigidObjectParsac) {
   EXPECT_GE(r.tracked_after_init, 0.98 * r.after_init)
       << r.tracked_after_init << " of " << r.after_init << " frames after initialization";
   ASSERT_TRUE(r.s.eval_ok);
-  // Issue 8: 0.5% (not met, measured 0.518%).
+  // Issue 8: 0.5% (not met, measured 0.539%).
   EXPECT_LE(r.s.ate_pct, 0.6) << "ATE " << r.s.ate_rmse_m << " m over " << r.s.path_m << " m";
 }
 
@@ -80,8 +82,8 @@ TEST(SlamDynamic, RigidObjectRansacIsLostOrWorse) {
   const bool lost = r.s.first_tracked < 0 || r.tracked_after_init < 0.98 * r.after_init;
   if (!lost) {
     ASSERT_TRUE(r.s.eval_ok);
-    // Issue 8: 3x (not met, measured 1.69x).
-    EXPECT_GE(r.s.ate_rmse_m, 1.5 * p.s.ate_rmse_m)
+    // Issue 8: 3x (measured 3.24x).
+    EXPECT_GE(r.s.ate_rmse_m, 3.0 * p.s.ate_rmse_m)
         << "RANSAC ATE " << r.s.ate_rmse_m << " m, PARSAC " << p.s.ate_rmse_m << " m";
   }
 }
