@@ -75,6 +75,9 @@ int cmd_replay(int argc, char** argv) {
 
   DebugVideoOptions dopt;
   const bool debug_out = !debug_video.empty() || !debug_images.empty();
+  if (!debug_out && debug_every != 1) {
+    throw UsageError("--debug-every: needs --debug-video or --debug-images");
+  }
   if (debug_out) {
     if (debug_every < 1 || debug_every != std::floor(debug_every) || debug_every > 1e6) {
       throw UsageError("--debug-every: must be an integer >= 1");
