@@ -443,7 +443,12 @@ void DebugVideoWriter::worker() {
       queue_.pop_front();
       not_full_.notify_one();
     }
-    write(*d);
+    try {
+      write(*d);
+    } catch (const std::exception& e) {  // e.g. cv::Exception: keep the replay running
+      if (stats_.error.empty()) stats_.error = std::string("drawing failed: ") + e.what();
+      RDSLAM_LOG_ERROR("debug video: %s", e.what());
+    }
   }
 }
 

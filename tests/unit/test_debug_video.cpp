@@ -134,6 +134,26 @@ TEST(DebugRenderer, TopViewShowsPointsKeyframesAndInvalidated) {
   EXPECT_GT(count_colour(plot, bgr(DebugColours::invalidated())), 4);  // the red dot
 }
 
+TEST(DebugRenderer, ProjectsThroughTheDistortionModel) {
+  // Features are raw pixels, map points ideal 3D: the dot must land where the distorted
+  // camera sees the point. Radial-tangential with k1 only: u = fx * x (1 + k1 r^2) + cx.
+  CameraModel cam = test_camera();
+  cam.k1 = -0.2;
+  DebugRenderer r(cam, 5);
+  auto s = std::make_shared<MapSnapshot>();
+  s->ids = {1};
+  s->p_world.push_back(Eigen::Vector3d(0.5, 0.25, 1.0));
+  const DebugFrame d = synthetic_frame(s);
+  r.observe(d);
+  cv::Mat canvas;
+  r.render(d, canvas);
+  const double x = 0.5, y = 0.25, f = 1.0 + cam.k1 * (x * x + y * y);
+  const double u = cam.fx * x * f + cam.cx, v = cam.fy * y * f + cam.cy;  // (528.5, 341.8)
+  EXPECT_EQ(at(canvas, r, u, v), bgr(DebugColours::map_point()));
+  EXPECT_NE(at(canvas, r, cam.fx * x + cam.cx, cam.fy * y + cam.cy),
+            bgr(DebugColours::map_point()));
+}
+
 TEST(DebugRenderer, InvalidatedPointsFadeAfterRecentFrames) {
   const CameraModel cam = test_camera();
   DebugRenderer r(cam, /*recent_frames=*/3);
