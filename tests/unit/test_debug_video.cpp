@@ -225,6 +225,28 @@ TEST(DebugVideoWriter, WritesEveryNthFrameToVideoAndPngs) {
   EXPECT_EQ(frames, 4);
 }
 
+TEST(DebugVideoWriter, RealTimeModeDropsInsteadOfWaitingAndCountsIt) {
+  // Not lossless: a full queue drops the record (the tracker never waits). Whatever the
+  // timing, every record is either drawn or counted as dropped.
+  testing::ScratchDir dir("debug-video-rt");
+  DebugVideoOptions o;
+  o.images_dir = (dir.path() / "img").string();
+  o.lossless = false;
+  o.queue_frames = 1;
+  const auto snap = synthetic_snapshot();
+  DebugVideoWriter w(o, test_camera());
+  for (int i = 0; i < 20; ++i) {
+    DebugFrame d = synthetic_frame(snap);
+    d.dataset_index = i;
+    w.on_debug_frame(std::move(d));
+  }
+  const DebugVideoStats st = w.finish();
+  EXPECT_EQ(st.received, 20);
+  EXPECT_EQ(st.drawn + st.dropped, 20);
+  EXPECT_EQ(st.images, st.drawn);
+  EXPECT_GE(st.drawn, 1);
+}
+
 std::string usage_error(const DebugVideoOptions& o) {
   try {
     DebugVideoWriter w(o, test_camera());
