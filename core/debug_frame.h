@@ -11,7 +11,7 @@
 // Ownership: the record owns its image and feature list and shares (read-only) the
 // MapSnapshot the tracker matched against, so a sink may keep it and draw on another thread.
 // The snapshot is still freed by the mapper (MatchIndex::collect) once nobody holds it.
-// Threads: on_debug_frame() is called on the tracker thread, once per tracked frame, in order.
+// Threads: on_debug_frame() is called on the tracker thread, once per frame, in order.
 #pragma once
 
 #include <cstdint>
