@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "core/slam.h"
 #include "core/trajectory_eval.h"
+#include "drivers/loop_source.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
@@ -37,7 +38,7 @@ int cmd_replay(int argc, char** argv) {
   ArgParser p(
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
       "[--plot OUT.png] [--timings OUT.csv] [--realtime] [--debug-video OUT.mp4] "
-      "[--debug-images DIR] [--debug-every N]",
+      "[--debug-images DIR] [--debug-every N] [--loop N] [--map-log OUT.csv]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -49,6 +50,15 @@ int cmd_replay(int argc, char** argv) {
   p.option("--timings", &timings_path, "OUT.csv",
            "write per-frame timings (seq, index, state, queue+track ms, latency ms)");
   p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
+  double loops = 1;
+  std::string map_log_path;
+  p.option("--loop", &loops, "N",
+           "play the source N times in a row (endurance run; the sequence is cached in memory "
+           "at start, at most 2 GiB; at each restart the camera jumps back and must "
+           "relocalize)");
+  p.option("--map-log", &map_log_path, "OUT.csv",
+           "write the map size per frame (seq, state, keyframes, map points, points "
+           "invalidated so far)");
   std::string debug_video, debug_images;
   double debug_every = 1;
   p.option("--debug-video", &debug_video, "OUT.mp4",
@@ -89,8 +99,24 @@ int cmd_replay(int argc, char** argv) {
     check_debug_output_paths(dopt);  // before the (possibly slow) source opens
   }
 
+  if (loops < 1 || loops != std::floor(loops) || loops > 1e6) {
+    throw UsageError("--loop: must be an integer >= 1");
+  }
+  // Opened before the run, so a bad path fails at once rather than after a long replay.
+  std::unique_ptr<FILE, int (*)(FILE*)> map_log(nullptr, &std::fclose);
+  if (!map_log_path.empty()) {
+    map_log.reset(std::fopen(map_log_path.c_str(), "w"));
+    if (!map_log) throw UsageError("--map-log: cannot write " + map_log_path);
+  }
   const SourceOptions so = make_source_options(cfg, overrides, realtime ? 1.0 : 0.0);
-  std::unique_ptr<FrameSource> source = open_source(uri, so);
+  std::unique_ptr<FrameSource> source;
+  if (loops > 1) {
+    SourceOptions unpaced = so;
+    unpaced.speed = 0.0;  // the cache is filled as fast as the source reads
+    source = make_looped_source(open_source(uri, unpaced), static_cast<int>(loops), so.speed);
+  } else {
+    source = open_source(uri, so);
+  }
   const CameraModel camera =
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
   // Lossless replay maps like an offline run: the tracker waits for each keyframe.
@@ -188,6 +214,17 @@ int cmd_replay(int argc, char** argv) {
                    (fr.tracked_mono_ns - fr.arrival_mono_ns) * 1e-6, fr.latency_ns() * 1e-6);
     }
     std::fclose(f);
+  }
+  if (map_log) {
+    FILE* f = map_log.get();
+    std::fprintf(f, "seq,dataset_index,state,keyframes,map_points,invalidated_points\n");
+    for (const auto& fr : rr.frames) {
+      std::fprintf(f, "%llu,%lld,%s,%d,%d,%lld\n", static_cast<unsigned long long>(fr.seq),
+                   static_cast<long long>(fr.dataset_index), to_string(fr.result.state),
+                   fr.result.keyframes, fr.result.map_points,
+                   static_cast<long long>(fr.result.invalidated_points));
+    }
+    if (std::fflush(f) != 0) throw std::runtime_error("--map-log: write error on " + map_log_path);
   }
   if (!report_path.empty()) {
     JsonWriter w;
