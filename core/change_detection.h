@@ -32,10 +32,26 @@ struct ChangeDetectionParams {
   // 0..255): the paper's sum over the window divided by window area and channel count, so the
   // threshold does not depend on the window size.
   double tau_c = 25.0;
+  // Eq. (2) on photometrically normalised windows (see appearance_difference()): a global
+  // exposure step or a light spot is not a scene change. false: the paper's plain SAD.
+  bool normalise_appearance = true;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
   double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
   double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid
-  // Second paper: per-landmark counters (miss threshold 10 frames, moved threshold 5 frames).
+  // Per-frame updating (core/map_updater.h): the tracker hands the mapper every n-th tracked
+  // frame (0: keyframe candidates only, as before).
+  int check_every_n_frames = 2;
+  // Only established points are checked: observed by at least this many keyframes. Deviation
+  // (the paper checks every valid point): a two-view monocular point is often badly
+  // triangulated (the mapper culls those that find no third view), projects off its surface
+  // and so "changes appearance" without any scene change.
+  int min_observations = 3;
+  // Consecutive checks that must find X changed before V(X) = 0 (1: the paper's immediate
+  // decision). Deviation: a change is a lasting state, while a moving object's edge, motion
+  // blur or a one-frame pose error produce one-off verdicts.
+  int confirm_checks = 2;
+  // Second paper: per-landmark counters (miss threshold 10, moved threshold 5 observations).
+  bool landmark_counters = true;
   int miss_threshold = 10;
   int moved_threshold = 5;
   // Second paper, Sec. 3.3/4.2: optional dense optical-flow rejection of candidate points while
@@ -72,9 +88,23 @@ int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vec
 // y' = x' + s (y - x) maps the keyframe window into the current image, with s the scale ratio
 // (depth in keyframe / depth in current frame), i.e. a fronto-parallel patch at the
 // estimated depth. Both images BGR8 or both grey. Returns +inf when a window leaves an image.
+//
+// normalise = true (dynamic.normalise_appearance, the default; a deviation from the paper's
+// plain colour SAD): per channel, each window is made zero-mean and the current window is
+// scaled by the gain g = sum|I_kf - mean_kf| / sum|I_cur - mean_cur| (clamped to
+// [1/kMaxAppearanceGain, kMaxAppearanceGain]) before the SAD, which stays in the keyframe's
+// grey levels so tau_c keeps its meaning. Why bias + gain: a camera's exposure/gain step and
+// a light spot larger than the 11x11 window are, over that window, an affine intensity change
+// I' = a I + b; this model removes exactly that and nothing else (unlike NCC-only scores it
+// keeps the SAD's sensitivity to a texture that changed). Why the clamp: a texture replaced by
+// a flat surface (an object moved away from a plain wall) would otherwise be amplified back to
+// the keyframe's contrast; a ratio beyond 4 is not a lighting change a camera produces within
+// one window. Shading that varies inside the window (a spot's edge) is not modelled.
+constexpr int kMaxAppearanceWindow = 31;
+constexpr double kMaxAppearanceGain = 4.0;
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                             double scale, int window, int search_d);
+                             double scale, int window, int search_d, bool normalise = false);
 
 // A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
 // current camera, and X_y's projection into the keyframe where X first appeared.

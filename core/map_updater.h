@@ -37,6 +37,21 @@
 
 namespace rdslam {
 
+// One tracked frame as the updater sees it: pose, image, the tracked features (undistorted
+// pixels and map point ids, -1 = untracked, skipped) and the ids the robust estimator rejected
+// in this frame. frame_no (the tracker's tracked-frame counter, -1 unknown) lets the optional
+// optical-flow test know how many frames separate two observations.
+struct UpdateFrame {
+  const cv::Mat* image = nullptr;
+  Pose T_cam_world;
+  const cv::Point2f* un = nullptr;
+  const int64_t* point_of = nullptr;
+  int count = 0;
+  const int64_t* rejected = nullptr;
+  int rejected_count = 0;
+  int64_t frame_no = -1;
+};
+
 struct MapUpdateStats {
   int keyframes_selected = 0;     // closest keyframes found
   int keyframes_triggered = 0;    // of those, histogram difference above the threshold
@@ -44,6 +59,28 @@ struct MapUpdateStats {
   int points_invalidated = 0;     // V(X) set to 0 in this call
   int keyframes_invalidated = 0;  // keyframes newly marked invalid in this call
   int decisions[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
+  int points_not_established = 0;               // skipped: fewer than min_observations
+  int points_inconsistent = 0;  // skipped: X does not reproject onto the keyframe's feature
+  int counter_discards = 0;                     // of points_invalidated: by the counters
+  int flow_moved = 0;                           // tracked points on flowing regions
+  bool flow_computed = false;                   // camera stationary: flow ran this frame
+};
+
+// Why a point was invalidated (tests and diagnostics): an Algorithm 1 decision or a counter.
+enum class InvalidationCause : uint8_t {
+  kNothingInFront = 0,    // Alg. 1: all neighbours at or behind X
+  kSameObject,            // Alg. 1: a nearer neighbour close to X in its first keyframe
+  kNoOcclusionHandling,   // ablation: appearance alone
+  kMovedRejected,         // counter: rejected by the robust estimator moved_threshold times
+  kMovedFlow,             // counter: matched on a flowing region while stationary
+  kMissed,                // counter: "occluded by a moving object" for miss_threshold checks
+};
+const char* to_string(InvalidationCause c);
+struct InvalidationRecord {
+  int64_t id = -1;
+  InvalidationCause cause = InvalidationCause::kNothingInFront;
+  double d_c = 0.0;   // eq. (2) value (Alg. 1 causes)
+  int keyframe = -1;  // keyframe whose point list contained X (Alg. 1 causes)
 };
 
 class MapUpdater {
@@ -56,6 +93,11 @@ class MapUpdater {
   MapUpdateStats update(Map& map, const cv::Mat& image, const Pose& T_cam_world,
                         const Features& features, const std::vector<int64_t>& point_of,
                         std::vector<int64_t>* invalidated = nullptr);
+  // The general form (frame observations of the tracker, core/keyframe.h). `records`
+  // (optional) receives one entry per point invalidated, with the cause.
+  MapUpdateStats update(Map& map, const UpdateFrame& frame,
+                        std::vector<int64_t>* invalidated = nullptr,
+                        std::vector<InvalidationRecord>* records = nullptr);
 
   const ChangeDetectionParams& params() const { return params_; }
 
@@ -71,6 +113,11 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  bool counter_event(Map& map, int64_t id, LandmarkEvent e);
+  void flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
+                   std::vector<int64_t>* invalidated);
+  void invalidate(MapPoint& p, MapUpdateStats& st, std::vector<int64_t>* invalidated,
+                  InvalidationCause cause, double d_c = 0.0, int kf = -1);
 
   ChangeDetectionParams params_;
   PinholeIntrinsics K_;
@@ -86,6 +133,26 @@ class MapUpdater {
   int grid_cols_ = 0, grid_rows_ = 0;
   double cell_px_ = 20.0;
   std::vector<NeighbourPoint, Eigen::aligned_allocator<NeighbourPoint>> neighbours_;
+  struct Candidate {
+    int64_t id = -1;
+    int kf = -1, feat = -1;
+    Eigen::Vector3d n_x, n_xp;
+    Eigen::Vector2d xp;
+    double depth = 0.0, d_c = 0.0;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  std::vector<Candidate, Eigen::aligned_allocator<Candidate>> candidates_;
+  std::vector<int> triggered_;
+  // Consecutive change verdicts per point (confirm_checks); entries of points that became
+  // invalid or were erased are purged when the table outgrows the map.
+  std::unordered_map<int64_t, int> confirm_;
+  // Optical flow (dynamic.flow_rejection): the previous observation.
+  cv::Mat prev_gray_, cur_gray_, flow_;
+  Pose prev_T_;
+  int64_t prev_frame_no_ = -1;
+  std::vector<float> fx_, fy_;
+  std::vector<uint8_t> keep_;
+  std::vector<InvalidationRecord>* records_ = nullptr;  // of the update() call in progress
 };
 
 }  // namespace rdslam
