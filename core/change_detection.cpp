@@ -19,6 +19,8 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
   v.field("tau_c", tau_c, 0.0, 255.0, "appearance threshold, mean abs difference per pixel");
   v.field("normalise_appearance", normalise_appearance,
           "eq. (2) on bias- and gain-compensated windows (robust to lighting changes)");
+  v.field("tau_c_relative", tau_c_relative, 0.0, 2.0,
+          "appearance threshold of the normalised eq. (2), in units of the window's contrast");
   v.field("r1", r1, 1.0, 200.0, "radius of phi(x') in pixels");
   v.field("r2", r2, 1.0, 200.0, "first-keyframe distance threshold in pixels");
   v.field("keyframe_invalid_ratio", keyframe_invalid_ratio, 0.0, 1.0,
@@ -196,7 +198,8 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
     const double cy = x_prime.y() + scale * (gy - h - D + off_y);
     for (int gx = 0; gx < gw; ++gx) {
       const double cx = x_prime.x() + scale * (gx - h - D + off_x);
-      for (int c = 0; c < ch; ++c) grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
+      for (int c = 0; c < ch; ++c)
+        grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
     }
   }
   double best = kInf;
@@ -230,7 +233,12 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
       best = std::min(best, sum);
     }
   }
-  return best / (double(n) * ch);
+  if (!normalise) return best / (double(n) * ch);
+  // Relative residual: the keyframe window's own contrast is the unit (see the header).
+  double k_dev_all = 0;
+  for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
+  if (k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture to compare
+  return best / k_dev_all;
 }
 
 const char* to_string(PointDecision d) {

@@ -19,6 +19,8 @@ constexpr int kMaxSelected = 20;  // ChangeDetectionParams::closest_keyframes up
 
 MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K)
     : params_(params), K_(K) {
+  // Algorithm 1 compares D_c with the threshold of the score in use.
+  if (params_.normalise_appearance) params_.tau_c = params_.tau_c_relative;
   cell_px_ = std::max(params_.r1, 4.0);
   selected_.resize(kMaxSelected);
   neighbours_.resize(kMaxNeighbours);
@@ -280,7 +282,9 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
     const ColorHistogram& kh = keyframe_histogram(*kf);
-    if (!kh.valid || histogram_difference(kh, current_hist_) <= params_.histogram_threshold) {
+    // histogram_threshold 0: every selected keyframe is checked (even an identical image).
+    if (!kh.valid || (params_.histogram_threshold > 0 &&
+                      histogram_difference(kh, current_hist_) <= params_.histogram_threshold)) {
       continue;
     }
     ++st.keyframes_triggered;

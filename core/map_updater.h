@@ -1,16 +1,34 @@
 // Online 3D point and keyframe updating of RDSLAM Section 4 (Algorithm 1) applied to the map.
 //
-// For one tracked frame (image, pose, features and the map ids of the tracked features) the
-// updater selects the `closest_keyframes` valid keyframes (optical axis within
-// `keyframe_view_angle_deg`, nearest camera centres), compares each one's colour histogram
-// with the frame's, and only when the sum of R, G, B distances exceeds `histogram_threshold`
-// runs Algorithm 1 (core/change_detection.h) on that keyframe's valid points that are not
-// tracked in this frame (a tracked point was just observed, so it is present). Points Alg. 1
-// declares changed get V(X) = 0; a checked keyframe whose invalid plus shared points exceed
-// `keyframe_invalid_ratio` of its points is marked invalid (the 90% rule). Invalid points
-// leave the matching index at the mapper's next publish (core/mapper.cpp skips !valid).
-// With `map_update = false` update() does nothing (Figure 9 ablation); with
-// `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
+// Input: one tracked frame (UpdateFrame: image, pose, the tracked features' pixels and map ids,
+// the ids PARSAC rejected). The mapper calls it for every keyframe candidate and for the
+// tracker's frame observations (every dynamic.check_every_n_frames tracked frames,
+// core/keyframe.h). Per call:
+//  1. select the `closest_keyframes` valid keyframes (optical axis within
+//     `keyframe_view_angle_deg`, nearest camera centres); a keyframe is checked when its colour
+//     histogram differs from the frame's by more than `histogram_threshold` (default 0:
+//     always, see below);
+//  2. gather the checked keyframes' valid points that are not tracked in this frame, project
+//     into the view, are observed by >= `min_observations` keyframes and reproject onto the
+//     keyframe's feature (chi2 95%); eq. (2) against each such keyframe passing the view test;
+//  3. run Algorithm 1 once per point on its best reference (smallest D_c); a change verdict
+//     must repeat in `confirm_checks` consecutive checks before V(X) = 0;
+//  4. the second paper's counters (`landmark_counters`): a tracked point is "still" (counts
+//     reset), a PARSAC-rejected point (or, with `flow_rejection` and a stationary camera, a
+//     tracked point on dense optical flow) is "moved", Alg. 1's "occluded by an untracked,
+//     i.e. moving, object" verdict is "missed"; above moved_threshold / miss_threshold the
+//     point is discarded (V(X) = 0);
+//  5. the 90% rule on every checked keyframe.
+// Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
+// !valid; an observation that invalidated points publishes at once); invalid keyframes are
+// removed by the mapper. With `map_update = false` update() does nothing (Figure 9 ablation);
+// with `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
+//
+// Deviations from the paper (argued where the parameters are declared, core/change_detection.h,
+// and in docs/slam.md "Map updating"): histogram trigger default 0, normalised eq. (2),
+// established points only, best reference per point, confirmation of change verdicts, the
+// miss counter restricted to Alg. 1's undecidable case (a plain "not matched" count would
+// discard every point occluded for a few frames, against Alg. 1's purpose).
 //
 // "Shared" points of the 90% rule are those observed by at least 3 other keyframes, the same
 // reading as the mapper's keyframe culling (core/mapper.h).
@@ -19,10 +37,13 @@
 // uses the raw keypoint in the keyframe and the ideal projection in the current frame, exact
 // for undistorted sources (synthetic, rectified datasets).
 //
+// params() returns the parameters in use: with normalise_appearance, tau_c holds
+// tau_c_relative (the threshold of the normalised score).
+//
 // Ownership: the caller (the mapper) owns the Map and passes it in; the updater owns only its
-// scratch buffers and the per-keyframe histogram cache. Threads: one thread (the mapper's).
-// Allocation: buffers grow during warm-up and are reused; the histogram cache allocates once
-// per new keyframe (keyframes are rare).
+// scratch buffers, the per-keyframe histogram cache, the confirmation counts and the previous
+// observation's grey image (flow). Threads: one thread (the mapper's). Allocation: buffers
+// grow during warm-up and are reused; the histogram cache allocates once per new keyframe.
 #pragma once
 
 #include <Eigen/StdVector>
@@ -61,19 +82,19 @@ struct MapUpdateStats {
   int decisions[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
   int points_not_established = 0;               // skipped: fewer than min_observations
   int points_inconsistent = 0;  // skipped: X does not reproject onto the keyframe's feature
-  int counter_discards = 0;                     // of points_invalidated: by the counters
-  int flow_moved = 0;                           // tracked points on flowing regions
-  bool flow_computed = false;                   // camera stationary: flow ran this frame
+  int counter_discards = 0;     // of points_invalidated: by the counters
+  int flow_moved = 0;           // tracked points on flowing regions
+  bool flow_computed = false;   // camera stationary: flow ran this frame
 };
 
 // Why a point was invalidated (tests and diagnostics): an Algorithm 1 decision or a counter.
 enum class InvalidationCause : uint8_t {
-  kNothingInFront = 0,    // Alg. 1: all neighbours at or behind X
-  kSameObject,            // Alg. 1: a nearer neighbour close to X in its first keyframe
-  kNoOcclusionHandling,   // ablation: appearance alone
-  kMovedRejected,         // counter: rejected by the robust estimator moved_threshold times
-  kMovedFlow,             // counter: matched on a flowing region while stationary
-  kMissed,                // counter: "occluded by a moving object" for miss_threshold checks
+  kNothingInFront = 0,   // Alg. 1: all neighbours at or behind X
+  kSameObject,           // Alg. 1: a nearer neighbour close to X in its first keyframe
+  kNoOcclusionHandling,  // ablation: appearance alone
+  kMovedRejected,        // counter: rejected by the robust estimator moved_threshold times
+  kMovedFlow,            // counter: matched on a flowing region while stationary
+  kMissed,               // counter: "occluded by a moving object" for miss_threshold checks
 };
 const char* to_string(InvalidationCause c);
 struct InvalidationRecord {

@@ -49,9 +49,9 @@ struct MapperStats {
   double last_ba_ms = 0.0;
   int snapshots = 0;
   int points_invalidated = 0, keyframes_invalidated = 0;  // Sec. 4 updating (MapUpdater)
-  int observations = 0;           // frame observations run through the updater
-  int keyframes_replaced = 0;     // invalid keyframes removed from the map
-  double update_ms_total = 0.0;   // wall time in MapUpdater::update (observations only)
+  int observations = 0;              // frame observations run through the updater
+  int keyframes_replaced = 0;        // invalid keyframes removed from the map
+  double update_ms_total = 0.0;      // wall time in MapUpdater::update (observations only)
   int points_counter_discarded = 0;  // of points_invalidated: by the missed/moved counters
 };
 
