@@ -126,6 +126,7 @@ void Mapper::process(const KeyframeCandidate& c) {
       return;
     case KeyframeCandidate::Kind::kKeyframe:
       if (c.epoch == epoch_ && !map_.keyframes.empty()) {
+        bool changed = false;
         if (updater_) {
           UpdateFrame f;
           f.image = &c.image;
@@ -136,8 +137,12 @@ void Mapper::process(const KeyframeCandidate& c) {
           const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
           account(u);
           if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
+          changed = u.points_invalidated > 0 || u.keyframes_invalidated > 0;
         }
+        const int published = stats_.snapshots;
         handle_keyframe(c);
+        // A rejected candidate does not publish: invalid points still leave the index now.
+        if (changed && stats_.snapshots == published) publish();
       }
       return;
   }

@@ -50,6 +50,7 @@ struct DynResult {
   // Occluded-only points never covered within kCoverGap (occluded by something apart).
   int occluded_apart = 0, occluded_apart_invalidated = 0;
   double ate_pct = 0, ate_m = 0, path_m = 0;
+  int invalid_in_index = 0, index_rows = 0;
   int keyframes_accepted = 0, keyframes_culled = 0, keyframes_replaced = 0, observations = 0;
   double update_ms = 0;
 };
@@ -115,11 +116,8 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   SlamParams params = test::params_from_env();
   params.dynamic.map_update = map_update;
   params.dynamic.occlusion_handling = occlusion_handling;
-  // The paper's global trigger (R,G,B histogram distance sum > 1) never fires on rearrange:
-  // a poster moving within the view barely changes the global histograms (measured: 0 points
-  // checked with the default). Threshold 0 checks every candidate, which is what this test
-  // measures: Algorithm 1 itself.
-  params.dynamic.histogram_threshold = 0.0;
+  // Defaults: per-frame updating every dynamic.check_every_n_frames frames, histogram trigger
+  // 0 (the paper's global trigger, sum > 1, never fires here: measured 0 points checked).
   auto link = std::make_shared<SlamLink>(
       2, params.dynamic.map_update ? params.dynamic.check_every_n_frames : 0);
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, cam, link,
@@ -181,6 +179,14 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
         if (kv.second.valid) snapshot[kv.first] = {ref_frame(kv.second), kv.second.p_world};
       }
     }
+  }
+  // Item 3: invalid points are not in the index the tracker matches against.
+  if (const std::shared_ptr<const MapSnapshot> snap = link->index.acquire()) {
+    for (int64_t id : snap->ids) {
+      const auto it = mapper.map().points.find(id);
+      r.invalid_in_index += it != mapper.map().points.end() && !it->second.valid;
+    }
+    r.index_rows = snap->rows();
   }
   const MapperStats& ms = mapper.stats();
   r.keyframes_accepted = ms.keyframes_accepted;
@@ -352,11 +358,26 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   ASSERT_GT(on.moved, 0) << "no map point on the moved poster: the scenario lost its purpose";
   ASSERT_GT(on.occluded_only, 20);
   ASSERT_GT(off.occluded_only, 20);
-  // Figures 4-5: without occlusion handling, occluded-only points are invalidated more often
-  // (measured 37.5% with, 57.1% without).
-  EXPECT_LT(double(on.occluded_only_invalidated) / on.occluded_only,
-            double(off.occluded_only_invalidated) / off.occluded_only);
-  // Appearance alone finds most of the moved poster's points (measured 81.4%); occlusion
-  // handling keeps most of them (recall 28.1%): issue 8's 80% bar is not met yet.
-  EXPECT_GE(off.moved_invalidated, 0.7 * off.moved);
+  // Item 3: invalid points leave the matching index at the next swap.
+  EXPECT_GT(on.index_rows, 0);
+  EXPECT_EQ(on.invalid_in_index, 0);
+  EXPECT_EQ(off.invalid_in_index, 0);
+  // Figures 4-5: without occlusion handling, occluded-only points are invalidated measurably
+  // more often (measured MEAS_OCC), on both the issue's and the refined classification.
+  auto ratio = [](int a, int b) { return b > 0 ? double(a) / b : 0.0; };
+  EXPECT_LT(ratio(on.occluded_only_invalidated, on.occluded_only) + 0.1,
+            ratio(off.occluded_only_invalidated, off.occluded_only));
+  EXPECT_LT(ratio(on.occluded_apart_invalidated, on.occluded_apart) + 0.1,
+            ratio(off.occluded_apart_invalidated, off.occluded_apart));
+  // Per-frame updating removes most points of the moved poster within 30 frames of the move
+  // (refined recall MEAS_REC); culling alone (no map update) removes few (MEAS_NONE).
+  EXPECT_GE(ratio(on.moved_removed, on.moved), 0.5);
+  EXPECT_GT(ratio(on.moved_removed, on.moved), ratio(none.moved_removed, none.moved) + 0.25);
+  // Occlusion handling improves precision (MEAS_PREC).
+  EXPECT_GT(ratio(on.invalidated_moved, on.invalidated),
+            ratio(off.invalidated_moved, off.invalidated));
+  // Tracking stays good with every ablation (measured ATE MEAS_ATE).
+  EXPECT_LT(on.ate_pct, 0.5);
+  EXPECT_LT(off.ate_pct, 0.5);
+  EXPECT_LT(none.ate_pct, 0.5);
 }
