@@ -1,12 +1,31 @@
 // Sec. 4 updating on synth:rearrange (the poster moves at frames 60-80, box_c disappears at
 // frame 200): invalidation precision/recall against the renderer's ground truth
 // (SynthScene::point_fate), and how many points that were only occluded get invalidated, with
-// and without Algorithm 1's occlusion handling. The map lives in the SLAM frame; a Sim3
-// alignment of the tracked camera centres onto the ground truth maps points into the world.
-// Numbers are printed; the asserted bars are the ones this implementation meets. Issue 8's bars
-// (recall >= 80%, precision >= 90%, occluded-only <= 5%) are NOT met yet: measured with
-// occlusion handling recall 28%, precision 20% (41% of invalidated points are off any surface
-// by more than 10% of their depth, i.e. badly triangulated), occluded-only 37.5%.
+// and without Algorithm 1's occlusion handling, and the ATE with --no-map-update. The map lives
+// in the SLAM frame; a Sim3 alignment of the tracked camera centres onto the ground truth maps
+// points into the world. Defaults: per-frame updating (frame observations every
+// dynamic.check_every_n_frames tracked frames).
+//
+// Metrics. The issue's (printed first, unchanged): recall = points on a moved surface alive at
+// frame 59 that are invalidated by frame 110; precision = invalidated points whose surface
+// moved; occluded-only = points never moved but occluded while in view, share invalidated.
+// Refined (printed as "refined", because the ground-truth classification above misjudges
+// three cases):
+//  - recall also counts moved points that left the map by culling by the deadline (they are
+//    out of the index just the same; the no-map-update run shows what culling alone does);
+//  - precision also counts points whose 11x11 window at their reference frame overlapped a
+//    surface that moved (a corner formed by the poster's edge lies on the wall, but its
+//    appearance was the poster's) and points covered, at the invalidation, by a surface within
+//    5 cm (the poster hangs 3 cm in front of the wall: from images that is the wall's
+//    appearance changing, below the map's depth resolution);
+//  - occluded-only "apart" leaves out points only ever covered within 5 cm.
+// False positives are broken down by ground-truth situation and all invalidations by cause.
+//
+// Measured (ORB, this build): full recall 41.0% (refined 63.9%), precision 37.9% (56.7%),
+// occluded-only 36.0% (apart 41.5%), ATE 0.136%; no occlusion handling 70.8% (93.3%), 31.6%
+// (54.1%), 68.4% (70.7%), ATE 0.183%; no map update: ATE 0.141%, recall by culling alone 23.6%.
+// Issue 8's bars (recall >= 80%, precision >= 90%, occluded-only <= 5%, --no-map-update ATE
+// measurably worse) are NOT met; the asserted bars are the ones this implementation meets.
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -363,20 +382,22 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   EXPECT_EQ(on.invalid_in_index, 0);
   EXPECT_EQ(off.invalid_in_index, 0);
   // Figures 4-5: without occlusion handling, occluded-only points are invalidated measurably
-  // more often (measured MEAS_OCC), on both the issue's and the refined classification.
+  // more often (measured 36.0% vs 68.4%; apart 41.5% vs 70.7%), on both the issue's and the refined
+  // classification.
   auto ratio = [](int a, int b) { return b > 0 ? double(a) / b : 0.0; };
   EXPECT_LT(ratio(on.occluded_only_invalidated, on.occluded_only) + 0.1,
             ratio(off.occluded_only_invalidated, off.occluded_only));
   EXPECT_LT(ratio(on.occluded_apart_invalidated, on.occluded_apart) + 0.1,
             ratio(off.occluded_apart_invalidated, off.occluded_apart));
   // Per-frame updating removes most points of the moved poster within 30 frames of the move
-  // (refined recall MEAS_REC); culling alone (no map update) removes few (MEAS_NONE).
+  // (refined recall 63.9%); culling alone (no map update) removes few (23.6%).
   EXPECT_GE(ratio(on.moved_removed, on.moved), 0.5);
   EXPECT_GT(ratio(on.moved_removed, on.moved), ratio(none.moved_removed, none.moved) + 0.25);
-  // Occlusion handling improves precision (MEAS_PREC).
+  // Occlusion handling improves precision (measured 37.9% vs 31.6%).
   EXPECT_GT(ratio(on.invalidated_moved, on.invalidated),
             ratio(off.invalidated_moved, off.invalidated));
-  // Tracking stays good with every ablation (measured ATE MEAS_ATE).
+  // Tracking stays good with every ablation (measured 0.136%, 0.183%, 0.141%; the bar of
+  // test_slam_dynamic).
   EXPECT_LT(on.ate_pct, 0.5);
   EXPECT_LT(off.ate_pct, 0.5);
   EXPECT_LT(none.ate_pct, 0.5);
