@@ -32,6 +32,8 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
   v.field("confirm_checks", confirm_checks, 1, 100,
           "consecutive change verdicts before a point is invalidated");
   v.field("landmark_counters", landmark_counters, "second paper's missed/moved counters");
+  v.field("count_missed", count_missed,
+          "miss counter on Alg. 1's untracked-occluder verdict (needs landmark_counters)");
   v.field("miss_threshold", miss_threshold, 1, 10000, "missed count that discards a landmark");
   v.field("moved_threshold", moved_threshold, 1, 10000, "moved count that discards a landmark");
   v.field("flow_rejection", flow_rejection, "optical-flow rejection while stationary");

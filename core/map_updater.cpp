@@ -384,7 +384,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       confirm_.erase(c.id);
       counter_event(map, c.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
     }
-    if (d == PointDecision::kKeepOccludedMoving &&
+    if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
         counter_event(map, c.id, LandmarkEvent::kMissed)) {
       // Second paper's miss counter, restricted to the one case Algorithm 1 cannot decide:
       // X looks different and nothing tracked is near it. A moving occluder passes; when the

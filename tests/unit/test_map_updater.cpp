@@ -340,6 +340,7 @@ TEST(MapUpdater, PersistentUntrackedChangeIsDiscardedByTheMissCounter) {
   Scene s = make_scene(1.5);
   ChangeDetectionParams p = paper_params();
   p.landmark_counters = true;
+  p.count_missed = true;
   p.miss_threshold = 3;
   p.histogram_threshold = 0.0;  // the unchanged frame is checked too
   MapUpdater u(p, intrinsics());
