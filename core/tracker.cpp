@@ -412,6 +412,9 @@ void Tracker::maybe_send_observation(const Frame& frame) {
   link_->observations.commit();
   link_->observations_sent.fetch_add(1, std::memory_order_relaxed);
   link_->bell.ring();
+  // Lossless replay maps like the offline run (core/slam.h run_offline): the updater's
+  // invalidations reach the index before the next frame, so replays are deterministic.
+  if (params_.sync_mapper) wait_for_mapper();
 }
 
 void Tracker::wait_for_mapper() {
@@ -420,7 +423,7 @@ void Tracker::wait_for_mapper() {
   const auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < 50; ++i) {
     const uint32_t ticket = link_->mapped.ticket();
-    if (link_->candidates.size_approx() == 0 &&
+    if (link_->candidates.size_approx() == 0 && link_->observations.size_approx() == 0 &&
         link_->mapper_busy.load(std::memory_order_acquire) == 0) {
       break;
     }
