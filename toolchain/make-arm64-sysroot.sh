@@ -74,6 +74,7 @@ apt-get "${apt_opts[@]}" install -y -qq --download-only "${packages[@]}" >/dev/n
 debs=("$state"/var/cache/apt/archives/*.deb)
 echo "make-arm64-sysroot: unpacking ${#debs[@]} packages into $root"
 for deb in "${debs[@]}"; do dpkg -x "$deb" "$root"; done
+rm -rf "$state/var/cache/apt/archives"  # the .debs (about 260 MB) are not needed again
 
 # Absolute symlinks inside the sysroot would point at the host: make them relative.
 while IFS= read -r link; do
