@@ -26,15 +26,16 @@ ci=0
 # The CI subset: the code where aarch64 differs from x86-64. NEON FAST-9 against cv::FAST,
 # blur and resize (image_ops); ORB descriptors (features); Eigen/Ceres alignment and numerics
 # (geometry, pose_solvers, initializer, parsac, map_updater); byte-level pixel formats
-# (mjpeg_decoder, v4l2_yuyv); lock-free ring, frame pool and the threaded pipeline on ARM's
-# weaker memory model (spsc_ring, frame_pool, pipeline); config parsing (plain char is
-# unsigned on aarch64: config_errors, which also starts the rdslam binary under qemu).
+# (mjpeg_decoder, v4l2_yuyv, v4l2_libcamera: the Raspberry Pi camera path); lock-free
+# ring, frame pool and the threaded pipeline on ARM's weaker memory model (spsc_ring,
+# frame_pool, pipeline); config parsing (plain char is unsigned on aarch64: config_errors,
+# which also starts the rdslam binary under qemu).
 # Left to the full run: synth and tracker_alloc (minutes each under qemu), the datasets,
 # recorder and the rest of the CLI tests.
 ci_tests=(
   test_image_ops test_features test_geometry test_pose_solvers test_initializer test_parsac
-  test_map_updater test_mjpeg_decoder test_v4l2_yuyv test_spsc_ring test_frame_pool
-  test_pipeline test_config_errors
+  test_map_updater test_mjpeg_decoder test_v4l2_yuyv test_v4l2_libcamera test_spsc_ring
+  test_frame_pool test_pipeline test_config_errors
 )
 while (($#)); do
   case "$1" in
@@ -72,10 +73,11 @@ fi
 step "sysroot $sysroot"
 "$here/toolchain/make-arm64-sysroot.sh" "$sysroot"
 step "configuring $build"
-# Benchmarks (timing programs) are not built: timings under emulation mean nothing.
+# Benchmarks (timing programs) are not built: timings under emulation mean nothing. The
+# libcamera: source (CSI cameras of the Raspberry Pi) is built: the sysroot has libcamera.
 cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_TOOLCHAIN_FILE="$here/toolchain/aarch64-linux-gnu.cmake" -DRDSLAM_SYSROOT="$sysroot" \
-  -DRDSLAM_WITH_LIBCAMERA=OFF -DRDSLAM_BUILD_BENCHMARKS=OFF >/dev/null
+  -DRDSLAM_WITH_LIBCAMERA=ON -DRDSLAM_BUILD_BENCHMARKS=OFF >/dev/null
 step "building ${targets:-everything}"
 # shellcheck disable=SC2086
 cmake --build "$build" --parallel "$jobs" ${targets:+--target $targets}

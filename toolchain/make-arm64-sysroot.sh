@@ -17,7 +17,7 @@ packages=(
   libc6-dev libstdc++-12-dev
   libopencv-dev libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   liblcm-dev libglib2.0-dev libsystemd-dev libyaml-cpp-dev libturbojpeg0-dev
-  libgtest-dev libgmock-dev libblas-dev liblapack-dev libatlas-base-dev
+  libgtest-dev libgmock-dev libblas-dev liblapack-dev libatlas-base-dev libcamera-dev
 )
 
 # Debian 12 with its point-release and security updates, as a board's image would have.
