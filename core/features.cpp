@@ -268,6 +268,7 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
   for (int l = 0; l < L; ++l) {
     const cv::Mat& img = pyramid_[l];
     if (img.cols <= 2 * kEdge + 1 || img.rows <= 2 * kEdge + 1) continue;
+    const float sx = float(gray.cols) / img.cols, sy = float(gray.rows) / img.rows;
     blur_.apply(img, blurred_[l]);
     // Corners at least kEdge from the border, so rotated BRIEF tests stay inside the image.
     fast_.detect(img, params_.fast_threshold, kEdge, fast_buf_);
@@ -354,7 +355,10 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
           d[byte] = val;
         }
         cv::KeyPoint& o = out.kps[out.count];
-        o.pt = cv::Point2f(x * level_scale_[l], y * level_scale_[l]);
+        // Level pixel centre -> level-0 pixel: the pyramid's resampling is pixel-centre
+        // aligned (core/image_ops.h BilinearResize), so x0 = (x + 0.5) W0 / Wl - 0.5, not
+        // x * scale (that is 0.1-0.4 px off towards the top-left on levels 1-3).
+        o.pt = cv::Point2f((x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
         o.size = 31.f * level_scale_[l];
         o.angle = angle * 180.f / static_cast<float>(M_PI);
         o.response = kp.score;

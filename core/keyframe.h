@@ -46,6 +46,9 @@ struct SlamLink {
   std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate
   std::atomic<int> keyframes{0}, points{0};
   std::atomic<int64_t> invalidated_points{0};
+  // Debug output (core/debug_frame.h): > 0 makes the mapper list this many recently
+  // invalidated points in each snapshot (MapSnapshot::invalid_*). Set before the run.
+  std::atomic<int> debug_recent_invalid{0};
 };
 
 }  // namespace rdslam

@@ -530,10 +530,40 @@ void Mapper::publish() {
     s->kdtree = std::make_unique<cv::flann::Index>(s->desc.rowRange(0, rows),
                                                    cv::flann::KDTreeIndexParams(4));
   }
+  if (link_->debug_recent_invalid.load(std::memory_order_relaxed) > 0) fill_recent_invalid(*s);
   link_->keyframes.store(static_cast<int>(map_.keyframes.size()));
   link_->points.store(rows);
   link_->index.publish(std::move(s));
   ++stats_.snapshots;
+}
+
+void Mapper::fill_recent_invalid(MapSnapshot& s) {
+  // Debug output (core/debug_frame.h): every point found invalid (V(X) = 0, whichever rule
+  // set it) that was not listed before, newest last, bounded. Costs one pass over the map per
+  // publish, only when the debug output is on.
+  const size_t cap = static_cast<size_t>(link_->debug_recent_invalid.load());
+  if (recent_invalid_epoch_ != epoch_) {  // a new map reuses point ids
+    recent_invalid_.clear();
+    invalid_seen_.clear();
+    recent_invalid_epoch_ = epoch_;
+  }
+  for (const auto& [pid, p] : map_.points) {
+    if (p.valid || !invalid_seen_.insert(pid).second) continue;
+    recent_invalid_.emplace_back(pid, p.p_world);
+  }
+  while (recent_invalid_.size() > cap) recent_invalid_.pop_front();
+  if (invalid_seen_.size() > 8 * cap + 1024) {
+    // Forget ids that left the map (culled); they cannot turn invalid again.
+    for (auto it = invalid_seen_.begin(); it != invalid_seen_.end();) {
+      it = map_.points.count(*it) ? std::next(it) : invalid_seen_.erase(it);
+    }
+  }
+  s.invalid_ids.reserve(recent_invalid_.size());
+  s.invalid_p_world.reserve(recent_invalid_.size());
+  for (const auto& [pid, p] : recent_invalid_) {
+    s.invalid_ids.push_back(pid);
+    s.invalid_p_world.push_back(p);
+  }
 }
 
 }  // namespace rdslam

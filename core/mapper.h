@@ -18,7 +18,10 @@
 // the single thread alternates tracker and mapper.
 #pragma once
 
+#include <deque>
 #include <memory>
+#include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "core/bundle_adjustment.h"
@@ -76,6 +79,7 @@ class Mapper {
   void update_descriptor(MapPoint& p) const;
   void cull(int kf);
   void publish();
+  void fill_recent_invalid(MapSnapshot& s);
 
   MapperParams params_;
   FeatureParams fparams_;
@@ -87,6 +91,11 @@ class Mapper {
   MapperStats stats_;
   std::vector<int> cand_;
   std::unique_ptr<MapUpdater> updater_;
+  // Debug output only (SlamLink::debug_recent_invalid > 0): points seen invalid at a publish,
+  // oldest first, bounded; and which ids were already listed (this map epoch).
+  std::deque<std::pair<int64_t, Eigen::Vector3d>> recent_invalid_;
+  std::unordered_set<int64_t> invalid_seen_;
+  uint32_t recent_invalid_epoch_ = 0;
 };
 
 }  // namespace rdslam

@@ -46,6 +46,11 @@ struct MapSnapshot {
   std::unordered_map<int64_t, int> row_of;  // point id -> row
   // SIFT mode: the paper's KD-tree over `desc` (FLANN, 4 randomised trees).
   std::unique_ptr<cv::flann::Index> kdtree;
+  // Debug output only (core/debug_frame.h; empty unless SlamLink::debug_recent_invalid > 0):
+  // the most recently invalidated points (V(X) = 0 by map updating), oldest first, at most
+  // debug_recent_invalid of them; positions as when they were invalidated.
+  std::vector<int64_t> invalid_ids;
+  std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> invalid_p_world;
 
   int rows() const { return static_cast<int>(ids.size()); }
   int find(int64_t id) const {

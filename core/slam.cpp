@@ -18,10 +18,20 @@ class TrackerStageImpl : public TrackerStage {
   TrackerStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
       : tracker_(p.tracker, p.features, p.mapper.ba, p.parsac, cam, std::move(link),
                  p.mapper.max_points) {}
-  TrackResult track(const Frame& frame) override { return tracker_.track(frame); }
+  TrackResult track(const Frame& frame) override {
+    TrackResult r = tracker_.track(frame);
+    if (debug_) tracker_.emit_debug_frame(frame, r);
+    return r;
+  }
+  bool set_debug_sink(DebugFrameSink* sink) override {
+    tracker_.set_debug_sink(sink);
+    debug_ = sink != nullptr;
+    return true;
+  }
 
  private:
   Tracker tracker_;
+  bool debug_ = false;
 };
 
 class MapperStageImpl : public MapperStage {

@@ -13,7 +13,8 @@
 
 namespace rdslam {
 
-struct Frame;  // drivers/frame_source.h
+struct Frame;          // drivers/frame_source.h
+class DebugFrameSink;  // core/debug_frame.h
 
 // Values match the STATE_* constants of lcmtypes/rdslam_pose_t.lcm.
 enum class TrackingState : int8_t {
@@ -44,6 +45,10 @@ class TrackerStage {
  public:
   virtual ~TrackerStage() = default;
   virtual TrackResult track(const Frame& frame) = 0;
+  // Opt-in debug output (core/debug_frame.h): after this call every track() also hands a
+  // DebugFrame to `sink` (nullptr: off again). Call before the first track(), from the
+  // thread that owns the stage. Returns false if the stage has no debug output.
+  virtual bool set_debug_sink(DebugFrameSink* /*sink*/) { return false; }
 };
 
 // Called by the mapper thread only. step() does one unit of work (e.g. one keyframe

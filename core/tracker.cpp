@@ -199,6 +199,7 @@ int Tracker::optimise(Pose& T) {
   for (int k = 0; k < n; ++k) {
     if (corr_inl_[k]) continue;
     const int j = corr_feat_[k];
+    if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRefine);
     cur_.pid[j] = -1;
     cur_.row[j] = -1;
     cur_.best_dist[j] = 1e30f;
@@ -232,6 +233,7 @@ int Tracker::robust_optimise(Pose& T, const Pose& guess) {
     // Rejected this frame: the projection search below must not match the point again, or
     // eq. (1) would re-admit what PARSAC rejected (e.g. the moving book of Figure 8).
     if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
+    if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRobust);
     cur_.pid[j] = -1;
     cur_.row[j] = -1;
     cur_.best_dist[j] = 1e30f;
@@ -508,6 +510,44 @@ TrackResult Tracker::track(const Frame& frame) {
     result.inliers = stats_.inliers;
   }
   return result;
+}
+
+void Tracker::set_debug_sink(DebugFrameSink* sink, int recent_invalid) {
+  debug_sink_ = sink;
+  debug_rejected_.assign(sink ? static_cast<size_t>(fparams_.max_features) + 64 : 0, 0);
+  link_->debug_recent_invalid.store(sink ? recent_invalid : 0, std::memory_order_relaxed);
+}
+
+void Tracker::emit_debug_frame(const Frame& frame, const TrackResult& result) {
+  if (!debug_sink_) return;
+  // track() swaps this frame into last_ exactly when it returns a found pose (TRACKING or
+  // RELOCALIZED, including the initialization frame); otherwise the frame is still in cur_.
+  const bool found =
+      result.state == TrackingState::kTracking || result.state == TrackingState::kRelocalized;
+  const FrameState& fs = found ? last_ : cur_;
+  DebugFrame d;
+  d.seq = frame.seq;
+  d.stamp_ns = frame.stamp_ns;
+  d.dataset_index = frame.dataset_index;
+  d.result = result;
+  d.has_pose = result.state != TrackingState::kInitializing;
+  d.T_cam_world = last_.T;  // found: this frame (swapped in); LOST: the last good pose
+  d.image = frame.image.clone();
+  d.features.resize(static_cast<size_t>(fs.f.count));
+  for (int j = 0; j < fs.f.count; ++j) {
+    DebugFeature& df = d.features[static_cast<size_t>(j)];
+    df.x = fs.f.kps[j].pt.x;
+    df.y = fs.f.kps[j].pt.y;
+    if (fs.pid[j] >= 0) {
+      // A LOST frame's remaining matches did not support a pose: not inliers of anything.
+      df.kind = found ? DebugFeatureKind::kInlier : DebugFeatureKind::kUnsupported;
+    } else {
+      df.kind = static_cast<DebugFeatureKind>(debug_rejected_[j]);
+    }
+  }
+  std::fill(debug_rejected_.begin(), debug_rejected_.end(), uint8_t{0});
+  d.snapshot = snap_;
+  debug_sink_->on_debug_frame(std::move(d));
 }
 
 }  // namespace rdslam

@@ -32,6 +32,7 @@
 #include <memory>
 #include <vector>
 
+#include "core/debug_frame.h"
 #include "core/features.h"
 #include "core/initializer.h"
 #include "core/keyframe.h"
@@ -77,6 +78,12 @@ class Tracker {
   TrackResult track(const Frame& frame);
   const TrackerStats& stats() const { return stats_; }
   TrackingState state() const { return state_; }
+  // Debug output (core/debug_frame.h), off by default. With a sink, the tracker marks the
+  // features its estimators reject, and emit_debug_frame() (called by the stage right after
+  // track()) hands the frame's record to the sink; the mapper is asked to list the last
+  // `recent_invalid` invalidated points in its snapshots. Call before the first track().
+  void set_debug_sink(DebugFrameSink* sink, int recent_invalid = 4096);
+  void emit_debug_frame(const Frame& frame, const TrackResult& result);
 
  private:
   void refresh_snapshot();
@@ -143,6 +150,10 @@ class Tracker {
   TrackerStats stats_;
   int ref_kf_shared_ = 0, ref_kf_points_ = 0;
   double wait_ms_ = 0.0;  // this frame's time in wait_for_mapper() (reported, not tracking)
+  // Debug output only (set_debug_sink): per feature of this frame, the DebugFeatureKind of
+  // an estimator rejection (sized only when a sink is set).
+  DebugFrameSink* debug_sink_ = nullptr;
+  std::vector<uint8_t> debug_rejected_;
 };
 
 }  // namespace rdslam

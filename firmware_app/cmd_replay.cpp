@@ -2,16 +2,20 @@
 // threads; firmware_app/pipeline.h) with the SLAM stages (core/slam.h) on a recorded or
 // synthetic source, as fast as possible (lossless) or in real time (--realtime). Prints a
 // progress bar and a summary table; optionally writes the trajectory (TUM), the JSON report
-// (the common keys of firmware_app/report.h plus SLAM keys) and a top-view plot.
+// (the common keys of firmware_app/report.h plus SLAM keys) and a top-view plot, and a
+// debug video / debug images of what the system decided (firmware_app/debug_video.h).
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
 #include "core/log.h"
 #include "core/slam.h"
 #include "core/trajectory_eval.h"
+#include "drivers/loop_source.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
+#include "firmware_app/debug_video.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/plot.h"
 #include "firmware_app/progress.h"
@@ -33,7 +37,8 @@ int cmd_replay(int argc, char** argv) {
   bool realtime = false;
   ArgParser p(
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
-      "[--plot OUT.png] [--timings OUT.csv] [--realtime]",
+      "[--plot OUT.png] [--timings OUT.csv] [--realtime] [--debug-video OUT.mp4] "
+      "[--debug-images DIR] [--debug-every N] [--loop N] [--map-log OUT.csv]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -45,6 +50,26 @@ int cmd_replay(int argc, char** argv) {
   p.option("--timings", &timings_path, "OUT.csv",
            "write per-frame timings (seq, index, state, queue+track ms, latency ms)");
   p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
+  double loops = 1;
+  std::string map_log_path;
+  p.option("--loop", &loops, "N",
+           "play the source N times in a row (endurance run; the sequence is cached in memory "
+           "at start, at most 2 GiB; at each restart the camera jumps back and must "
+           "relocalize)");
+  p.option("--map-log", &map_log_path, "OUT.csv",
+           "write the map size per frame (seq, state, keyframes, map points, points "
+           "invalidated so far)");
+  std::string debug_video, debug_images;
+  double debug_every = 1;
+  p.option("--debug-video", &debug_video, "OUT.mp4",
+           "write a video of what the tracker decided per frame: inliers (green), robust-"
+           "estimator outliers (orange x), eq. (1) outliers (magenta x), map points (cyan), "
+           "points invalidated in the last 30 frames (red), header with state and counts, top "
+           "view; H.264 (avc1) or MPEG-4 (mp4v). Slows the replay (drawing and encoding on "
+           "their own thread; lossless replay waits for them); poses are unchanged");
+  p.option("--debug-images", &debug_images, "DIR",
+           "write the same frames as DIR/frame_NNNNNN.png (DIR is created)");
+  p.option("--debug-every", &debug_every, "N", "draw only every N-th frame (default 1)");
   // Ablation aliases of config keys (issue 8): the paper's Figures 9, 4-5 and 8.
   bool no_map_update = false, no_occlusion_handling = false;
   std::string estimator;
@@ -58,14 +83,52 @@ int cmd_replay(int argc, char** argv) {
   if (!estimator.empty()) overrides.push_back("parsac.method=" + estimator);
   AppConfig cfg = load_cli_config(config_path, overrides);
 
+  DebugVideoOptions dopt;
+  const bool debug_out = !debug_video.empty() || !debug_images.empty();
+  if (!debug_out && debug_every != 1) {
+    throw UsageError("--debug-every: needs --debug-video or --debug-images");
+  }
+  if (debug_out) {
+    if (debug_every < 1 || debug_every != std::floor(debug_every) || debug_every > 1e6) {
+      throw UsageError("--debug-every: must be an integer >= 1");
+    }
+    dopt.video_path = debug_video;
+    dopt.images_dir = debug_images;
+    dopt.every = static_cast<int>(debug_every);
+    dopt.lossless = !realtime;
+    check_debug_output_paths(dopt);  // before the (possibly slow) source opens
+  }
+
+  if (loops < 1 || loops != std::floor(loops) || loops > 1e6) {
+    throw UsageError("--loop: must be an integer >= 1");
+  }
+  // Opened before the run, so a bad path fails at once rather than after a long replay.
+  std::unique_ptr<FILE, int (*)(FILE*)> map_log(nullptr, &std::fclose);
+  if (!map_log_path.empty()) {
+    map_log.reset(std::fopen(map_log_path.c_str(), "w"));
+    if (!map_log) throw UsageError("--map-log: cannot write " + map_log_path);
+  }
   const SourceOptions so = make_source_options(cfg, overrides, realtime ? 1.0 : 0.0);
-  std::unique_ptr<FrameSource> source = open_source(uri, so);
+  std::unique_ptr<FrameSource> source;
+  if (loops > 1) {
+    SourceOptions unpaced = so;
+    unpaced.speed = 0.0;  // the cache is filled as fast as the source reads
+    source = make_looped_source(open_source(uri, unpaced), static_cast<int>(loops), so.speed);
+  } else {
+    source = open_source(uri, so);
+  }
   const CameraModel camera =
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
   // Lossless replay maps like an offline run: the tracker waits for each keyframe.
   if (!realtime) cfg.slam.tracker.sync_mapper = true;
   cfg.slam.parsac = cfg.parsac;
   SlamStages stages = make_slam_stages(cfg.slam, camera);
+  std::unique_ptr<DebugVideoWriter> debug_writer;
+  if (debug_out) {
+    dopt.fps = source->info().nominal_fps > 0 ? source->info().nominal_fps : 30.0;
+    debug_writer = std::make_unique<DebugVideoWriter>(dopt, camera);
+    stages.tracker->set_debug_sink(debug_writer.get());
+  }
 
   PipelineOptions options;
   options.params = cfg.pipeline;
@@ -74,6 +137,8 @@ int cmd_replay(int argc, char** argv) {
   ProgressSink progress(source->info().frame_count, stderr);
   const ReplayReport rr =
       replay_source(*source, *stages.tracker, *stages.mapper, options, {&progress});
+  DebugVideoStats dstats;
+  if (debug_writer) dstats = debug_writer->finish();
 
   RunReport report;
   std::vector<TrackingState> states;
@@ -124,6 +189,18 @@ int cmd_replay(int argc, char** argv) {
     std::printf("  %-26s n/a (%s)\n", "ATE rmse (Sim3)", ate_note.c_str());
   }
   std::printf("  %-26s %.1f MiB\n", "peak RSS", report.peak_rss_mb);
+  if (debug_writer) {
+    std::printf("  %-26s %lld of %lld frames drawn", "debug output",
+                static_cast<long long>(dstats.drawn), static_cast<long long>(dstats.received));
+    if (!debug_video.empty()) {
+      std::printf(", %s (%s)", debug_video.c_str(), dstats.codec.c_str());
+    }
+    if (!debug_images.empty()) {
+      std::printf(", %lld PNGs in %s", static_cast<long long>(dstats.images), debug_images.c_str());
+    }
+    if (dstats.dropped > 0) std::printf(", %lld dropped", static_cast<long long>(dstats.dropped));
+    std::printf("\n");
+  }
 
   if (!traj_path.empty()) write_trajectory_tum(traj_path, est);
   if (!timings_path.empty()) {
@@ -137,6 +214,17 @@ int cmd_replay(int argc, char** argv) {
                    (fr.tracked_mono_ns - fr.arrival_mono_ns) * 1e-6, fr.latency_ns() * 1e-6);
     }
     std::fclose(f);
+  }
+  if (map_log) {
+    FILE* f = map_log.get();
+    std::fprintf(f, "seq,dataset_index,state,keyframes,map_points,invalidated_points\n");
+    for (const auto& fr : rr.frames) {
+      std::fprintf(f, "%llu,%lld,%s,%d,%d,%lld\n", static_cast<unsigned long long>(fr.seq),
+                   static_cast<long long>(fr.dataset_index), to_string(fr.result.state),
+                   fr.result.keyframes, fr.result.map_points,
+                   static_cast<long long>(fr.result.invalidated_points));
+    }
+    if (std::fflush(f) != 0) throw std::runtime_error("--map-log: write error on " + map_log_path);
   }
   if (!report_path.empty()) {
     JsonWriter w;
@@ -183,6 +271,7 @@ int cmd_replay(int argc, char** argv) {
     }
     write_trajectory_plot(plot, plot_path);
   }
+  if (!dstats.error.empty()) throw std::runtime_error("debug output: " + dstats.error);
   return 0;
 }
 
