@@ -17,10 +17,23 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
   v.field("window", window, 3, 31, "appearance window size (odd)");
   v.field("search_d", search_d, 0, 8, "local search radius of eq. (2) in pixels");
   v.field("tau_c", tau_c, 0.0, 255.0, "appearance threshold, mean abs difference per pixel");
+  v.field("normalise_appearance", normalise_appearance,
+          "eq. (2) on bias- and gain-compensated windows (robust to lighting changes)");
+  v.field("tau_c_relative", tau_c_relative, 0.0, 2.0,
+          "appearance threshold of the normalised eq. (2), in units of the window's contrast");
   v.field("r1", r1, 1.0, 200.0, "radius of phi(x') in pixels");
   v.field("r2", r2, 1.0, 200.0, "first-keyframe distance threshold in pixels");
   v.field("keyframe_invalid_ratio", keyframe_invalid_ratio, 0.0, 1.0,
           "invalid+shared point ratio that invalidates a keyframe");
+  v.field("check_every_n_frames", check_every_n_frames, 0, 1000,
+          "tracked frames between per-frame map updates (0: keyframe candidates only)");
+  v.field("min_observations", min_observations, 1, 100,
+          "keyframes that must observe a point before Algorithm 1 checks it");
+  v.field("confirm_checks", confirm_checks, 1, 100,
+          "consecutive change verdicts before a point is invalidated");
+  v.field("landmark_counters", landmark_counters, "second paper's missed/moved counters");
+  v.field("count_missed", count_missed,
+          "miss counter on Alg. 1's untracked-occluder verdict (needs landmark_counters)");
   v.field("miss_threshold", miss_threshold, 1, 10000, "missed count that discards a landmark");
   v.field("moved_threshold", moved_threshold, 1, 10000, "moved count that discards a landmark");
   v.field("flow_rejection", flow_rejection, "optical-flow rejection while stationary");
@@ -123,11 +136,12 @@ inline float sample_bilinear(const cv::Mat& img, double x, double y, int c) {
 
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                             double scale, int window, int search_d) {
+                             double scale, int window, int search_d, bool normalise) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   if (keyframe_image.empty() || current_image.empty() ||
       keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
-      current_image.depth() != CV_8U || !(scale > 0) || !std::isfinite(scale)) {
+      current_image.depth() != CV_8U || !(scale > 0) || !std::isfinite(scale) || window < 1 ||
+      window > kMaxAppearanceWindow) {
     return kInf;
   }
   const int h = window / 2;
@@ -145,26 +159,88 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
       x_prime.y() + reach >= current_image.rows - 1) {
     return kInf;
   }
+  const int w = 2 * h + 1;
+  const int n = w * w;
+  const int D = search_d;
+  const int gw = w + 2 * D;  // sampled grid: the window plus the search margin
+  // Keyframe window (per channel zero-mean when normalising) and the current image sampled
+  // once on the warped grid y' = x' + s (y - x + d): the local search d runs in keyframe-window
+  // units (s d current pixels, s the depth ratio, near 1 for the selected keyframes). Stack
+  // buffers: no allocation.
+  float kv[3][kMaxAppearanceWindow * kMaxAppearanceWindow];
+  float grid[3][(kMaxAppearanceWindow + 2 * 8) * (kMaxAppearanceWindow + 2 * 8)];
+  if (D > 8) return kInf;
+  double k_mean[3] = {0, 0, 0}, k_dev[3] = {0, 0, 0};
+  for (int wy = -h; wy <= h; ++wy) {
+    const uint8_t* krow = keyframe_image.ptr<uint8_t>(ky + wy);
+    for (int wx = -h; wx <= h; ++wx) {
+      const int i = (wy + h) * w + (wx + h);
+      for (int c = 0; c < ch; ++c) {
+        kv[c][i] = krow[(kx + wx) * ch + c];
+        k_mean[c] += kv[c][i];
+      }
+    }
+  }
+  for (int c = 0; c < ch; ++c) {
+    k_mean[c] /= n;
+    if (!normalise) continue;
+    for (int i = 0; i < n; ++i) {
+      kv[c][i] -= float(k_mean[c]);
+      k_dev[c] += std::fabs(kv[c][i]);
+    }
+  }
   const double off_x = kx - x.x(), off_y = ky - x.y();  // sub-pixel part of x
+  const double reach_g = scale * (h + D) + 1;
+  if (x_prime.x() - reach_g < 0 || x_prime.y() - reach_g < 0 ||
+      x_prime.x() + reach_g >= current_image.cols - 1 ||
+      x_prime.y() + reach_g >= current_image.rows - 1) {
+    return kInf;
+  }
+  for (int gy = 0; gy < gw; ++gy) {
+    const double cy = x_prime.y() + scale * (gy - h - D + off_y);
+    for (int gx = 0; gx < gw; ++gx) {
+      const double cx = x_prime.x() + scale * (gx - h - D + off_x);
+      for (int c = 0; c < ch; ++c)
+        grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
+    }
+  }
   double best = kInf;
-  for (int dy = -search_d; dy <= search_d; ++dy) {
-    for (int dx = -search_d; dx <= search_d; ++dx) {
+  for (int dy = 0; dy <= 2 * D; ++dy) {
+    for (int dx = 0; dx <= 2 * D; ++dx) {
       double sum = 0;
-      for (int wy = -h; wy <= h && sum < best; ++wy) {
-        const uint8_t* krow = keyframe_image.ptr<uint8_t>(ky + wy);
-        const double cy = x_prime.y() + scale * (wy + off_y) + dy;
-        for (int wx = -h; wx <= h; ++wx) {
-          const double cx = x_prime.x() + scale * (wx + off_x) + dx;
-          for (int c = 0; c < ch; ++c) {
-            sum += std::fabs(float(krow[(kx + wx) * ch + c]) -
-                             sample_bilinear(current_image, cx, cy, c));
+      for (int c = 0; c < ch && sum < best; ++c) {
+        const float* g0 = grid[c] + dy * gw + dx;
+        double mean = 0, g = 1.0;
+        if (normalise) {
+          for (int wy = 0; wy < w; ++wy) {
+            for (int wx = 0; wx < w; ++wx) mean += g0[wy * gw + wx];
           }
+          mean /= n;
+          double dev = 0;
+          for (int wy = 0; wy < w; ++wy) {
+            for (int wx = 0; wx < w; ++wx) dev += std::fabs(g0[wy * gw + wx] - mean);
+          }
+          // Gain that maps the current window's contrast onto the keyframe's, bounded: a
+          // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
+          g = dev > 1e-6 ? k_dev[c] / dev : kMaxAppearanceGain;
+          g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
+        }
+        const float* kc = kv[c];
+        for (int wy = 0; wy < w; ++wy) {
+          const float* gr = g0 + wy * gw;
+          const float* kr = kc + wy * w;
+          for (int wx = 0; wx < w; ++wx) sum += std::fabs(kr[wx] - g * (gr[wx] - mean));
         }
       }
       best = std::min(best, sum);
     }
   }
-  return best / (double(window) * window * ch);
+  if (!normalise) return best / (double(n) * ch);
+  // Relative residual: the keyframe window's own contrast is the unit (see the header).
+  double k_dev_all = 0;
+  for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
+  if (k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture to compare
+  return best / k_dev_all;
 }
 
 const char* to_string(PointDecision d) {

@@ -24,7 +24,11 @@ struct ChangeDetectionParams {
   bool occlusion_handling = true;  // --no-occlusion-handling ablation (Figures 4-5) when false
   int closest_keyframes = 5;       // "we select 5 closest keyframes"
   double keyframe_view_angle_deg = 30.0;  // Z-axis direction difference to pre-select keyframes
-  double histogram_threshold = 1.0;       // sum of R,G,B histogram distances that triggers checks
+  // Sum of R,G,B histogram distances that triggers the point check. Deviation: default 0
+  // (always check) instead of the paper's 1: a global histogram does not see a local change
+  // (measured on synth:rearrange: a poster moving across the view never exceeds 1, 0 points
+  // checked); the cost is bounded by check_every_n_frames instead.
+  double histogram_threshold = 0.0;
   double tau_n = 0.8660254037844387;  // cos(30 deg): compare appearance only if n_x.n_x' >= tau_n
   int window = 11;                    // W(x): 11x11 appearance window (eq. 2)
   int search_d = 2;                   // local search radius |d| in pixels (eq. 2)
@@ -32,10 +36,38 @@ struct ChangeDetectionParams {
   // 0..255): the paper's sum over the window divided by window area and channel count, so the
   // threshold does not depend on the window size.
   double tau_c = 25.0;
+  // Eq. (2) on photometrically normalised windows (see appearance_difference()): a global
+  // exposure step or a light spot is not a scene change. false: the paper's plain SAD, with
+  // tau_c. true: the relative residual, with tau_c_relative. 0.8 corresponds, for Gaussian
+  // textures, to a normalised cross-correlation of about 0.68 between the two windows
+  // (E|a-b| / E|a| = sqrt(2 (1 - rho))): above it the current window explains less than
+  // two thirds of the keyframe's texture, the usual acceptance bound of patch matchers
+  // (0.7-0.8); a 1-2 px misregistration of a blurred texture stays well below it.
+  bool normalise_appearance = true;
+  double tau_c_relative = 0.8;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
   double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
   double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid
-  // Second paper: per-landmark counters (miss threshold 10 frames, moved threshold 5 frames).
+  // Per-frame updating (core/map_updater.h): the tracker hands the mapper every n-th tracked
+  // frame (0: keyframe candidates only, as before).
+  int check_every_n_frames = 3;
+  // Only established points are checked: observed by at least this many keyframes. Deviation
+  // (the paper checks every valid point): a two-view monocular point is often badly
+  // triangulated (the mapper culls those that find no third view), projects off its surface
+  // and so "changes appearance" without any scene change.
+  int min_observations = 3;
+  // Consecutive checks that must find X changed before V(X) = 0 (1: the paper's immediate
+  // decision). Deviation: a change is a lasting state, while a moving object's edge, motion
+  // blur or a one-frame pose error produce one-off verdicts.
+  int confirm_checks = 2;
+  // Second paper: per-landmark counters (miss threshold 10, moved threshold 5 observations).
+  bool landmark_counters = true;
+  // The miss counter (see core/map_updater.h: counted only for Alg. 1's "occluded by an
+  // untracked object" verdict) is off by default: it assumes a moving occluder passes, and an
+  // object held in front of the camera (rigid_object's book) stays; it then discards the
+  // static points behind it (measured rigid_object, seeds 1-3: mean ATE 0.512% with, 0.465%
+  // without; rearrange: it finds moved poster points over a plain wall).
+  bool count_missed = false;
   int miss_threshold = 10;
   int moved_threshold = 5;
   // Second paper, Sec. 3.3/4.2: optional dense optical-flow rejection of candidate points while
@@ -68,13 +100,37 @@ int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vec
                              const Eigen::Vector3d* z_axes, const Eigen::Vector3d* centres,
                              int count, double max_angle_deg, int k, int* out, int out_capacity);
 
-// Eq. (2): D_c(X) = min_d sum_{y in W(x)} |I_y - I_{y'+d}|, normalised per pixel and channel.
+// Eq. (2): D_c(X) = min_d sum_{y in W(x)} |I_y - I_{y'+d}|, normalised per pixel and channel
+// (normalise = false) or relative to the keyframe window's contrast (normalise = true).
 // y' = x' + s (y - x) maps the keyframe window into the current image, with s the scale ratio
 // (depth in keyframe / depth in current frame), i.e. a fronto-parallel patch at the
 // estimated depth. Both images BGR8 or both grey. Returns +inf when a window leaves an image.
+//
+// normalise = true (dynamic.normalise_appearance, the default; a deviation from the paper's
+// plain colour SAD): per channel, each window is made zero-mean and the current window is
+// scaled by the gain g = sum|I_kf - mean_kf| / sum|I_cur - mean_cur| (clamped to
+// [1/kMaxAppearanceGain, kMaxAppearanceGain]) before the SAD, which stays in the keyframe's
+// grey levels so tau_c keeps its meaning. Why bias + gain: a camera's exposure/gain step and
+// a light spot larger than the 11x11 window are, over that window, an affine intensity change
+// I' = a I + b; this model removes exactly that and nothing else (unlike NCC-only scores it
+// keeps the SAD's sensitivity to a texture that changed). Why the clamp: a texture replaced by
+// a flat surface (an object moved away from a plain wall) would otherwise be amplified back to
+// the keyframe's contrast; a ratio beyond 4 is not a lighting change a camera produces within
+// one window. Shading that varies inside the window (a spot's edge) is not modelled.
+//
+// The normalised score is relative: the SAD divided by the keyframe window's own sum of
+// absolute deviations (0: identical up to gain and bias; 1: the current window is flat, the
+// texture is gone; about 1.4: an unrelated texture of equal contrast). An absolute threshold
+// would not work on normalised windows: a keyframe window of mean contrast below tau_c could
+// never exceed it, however completely it changed. A keyframe window whose mean absolute
+// deviation is below kMinAppearanceContrast grey levels (sensor noise level) is not compared
+// (+inf): it has no texture whose change could be seen.
+constexpr int kMaxAppearanceWindow = 31;
+constexpr double kMaxAppearanceGain = 4.0;
+constexpr double kMinAppearanceContrast = 4.0;
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                             double scale, int window, int search_d);
+                             double scale, int window, int search_d, bool normalise = false);
 
 // A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
 // current camera, and X_y's projection into the keyframe where X first appeared.

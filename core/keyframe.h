@@ -2,7 +2,12 @@
 // preallocated SPSC ring (core/spsc_ring.h): the tracker fills a slot in place (no heap
 // allocation once the slot's buffers have grown), the mapper reads it in place.
 //
-// Ownership: slots live in the ring (SlamLink). Threads: the tracker writes a slot between
+// A second ring carries "frame observations" of ordinary tracked frames for Sec. 4's per-frame
+// map updating (core/map_updater.h): the tracker fills one every `observe_every_n` tracked
+// frames (SlamLink::observe_every_n, from dynamic.check_every_n_frames); when the ring is full
+// the observation is skipped and counted (the mapper is behind: the next one is newer anyway).
+//
+// Ownership: slots live in the rings (SlamLink). Threads: the tracker writes a slot between
 // back() and commit(); the mapper reads it between front() and pop().
 #pragma once
 
@@ -35,15 +40,37 @@ struct KeyframeCandidate {
   std::vector<InitPoint, Eigen::aligned_allocator<InitPoint>> init_points;
 };
 
+// One tracked frame for the updater: only the tracked features are carried (their undistorted
+// pixels and map point ids), plus the ids the robust estimator (PARSAC) rejected in this frame
+// (matched but inconsistent with the camera motion: the second paper's "moved" event).
+// Buffers grow once to the feature cap and are reused (no allocation after warm-up).
+struct FrameObservation {
+  uint32_t epoch = 0;
+  int64_t stamp_ns = 0;
+  int64_t frame_no = 0;  // tracker's tracked-frame counter (gaps between observations)
+  Pose T_cam_world;
+  cv::Mat image;  // the frame (grey or BGR), as the keyframe images
+  int tracked = 0;
+  std::vector<cv::Point2f> un;    // [tracked] undistorted pixels of the tracked features
+  std::vector<int64_t> point_of;  // [tracked] their map point ids
+  int rejected = 0;
+  std::vector<int64_t> rejected_ids;  // [rejected] PARSAC outliers of this frame
+};
+
 // What tracker and mapper share (created by make_slam_stages): the candidate ring, the
 // doorbell the mapper sleeps on, and the double-buffered matching index.
 struct SlamLink {
-  explicit SlamLink(uint32_t ring_capacity) : candidates(ring_capacity) {}
+  explicit SlamLink(uint32_t ring_capacity, int observe_every = 0)
+      : candidates(ring_capacity), observations(2), observe_every_n(observe_every) {}
   SpscRing<KeyframeCandidate> candidates;
+  // Frame observations (two slots: one being processed, one waiting). Set at construction.
+  SpscRing<FrameObservation> observations;
+  const int observe_every_n;  // 0: no observations (map updating off)
+  std::atomic<int64_t> observations_sent{0}, observations_skipped{0};
   Doorbell bell;    // tracker -> mapper: a candidate was queued
   Doorbell mapped;  // mapper -> tracker: a candidate was processed (sync mode only)
   MatchIndex index;
-  std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate
+  std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate/observation
   std::atomic<int> keyframes{0}, points{0};
   std::atomic<int64_t> invalidated_points{0};
   // Debug output (core/debug_frame.h): > 0 makes the mapper list this many recently

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 namespace rdslam {
 
@@ -17,6 +19,8 @@ constexpr int kMaxSelected = 20;  // ChangeDetectionParams::closest_keyframes up
 
 MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K)
     : params_(params), K_(K) {
+  // Algorithm 1 compares D_c with the threshold of the score in use.
+  if (params_.normalise_appearance) params_.tau_c = params_.tau_c_relative;
   cell_px_ = std::max(params_.r1, 4.0);
   selected_.resize(kMaxSelected);
   neighbours_.resize(kMaxNeighbours);
@@ -91,11 +95,129 @@ const Keyframe* MapUpdater::first_keyframe(Map& map, const MapPoint& p) const {
   return best;
 }
 
+bool MapUpdater::counter_event(Map& map, int64_t id, LandmarkEvent e) {
+  if (!params_.landmark_counters) return false;
+  MapPoint* p = map.point(id);
+  if (p == nullptr) return false;
+  LandmarkCounters c;
+  c.missed = static_cast<uint16_t>(std::clamp(p->missed, 0, 65535));
+  c.moved = static_cast<uint16_t>(std::clamp(p->moved, 0, 65535));
+  const bool discard =
+      update_landmark_counters(c, e, params_.miss_threshold, params_.moved_threshold);
+  p->missed = c.missed;
+  p->moved = c.moved;
+  return discard;
+}
+
+const char* to_string(InvalidationCause c) {
+  switch (c) {
+    case InvalidationCause::kNothingInFront:
+      return "alg1:nothing-in-front";
+    case InvalidationCause::kSameObject:
+      return "alg1:same-object";
+    case InvalidationCause::kNoOcclusionHandling:
+      return "alg1:no-occlusion-handling";
+    case InvalidationCause::kMovedRejected:
+      return "counter:moved(rejected)";
+    case InvalidationCause::kMovedFlow:
+      return "counter:moved(flow)";
+    case InvalidationCause::kMissed:
+      return "counter:missed";
+  }
+  return "unknown";
+}
+
+void MapUpdater::invalidate(MapPoint& p, MapUpdateStats& st, std::vector<int64_t>* invalidated,
+                            InvalidationCause cause, double d_c, int kf) {
+  if (!p.valid) return;
+  p.valid = false;
+  ++st.points_invalidated;
+  if (cause >= InvalidationCause::kMovedRejected) ++st.counter_discards;
+  if (invalidated != nullptr) invalidated->push_back(p.id);
+  if (records_ != nullptr) records_->push_back({p.id, cause, d_c, kf});
+}
+
+void MapUpdater::flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
+                             std::vector<int64_t>* invalidated) {
+  // Second paper, Sec. 3.3 / 4.2: while the camera is stationary, a landmark matched on a
+  // region with dense optical flow is "moved". Flow between this observation and the previous
+  // one; thresholds are per frame and scale with the number of frames between the two.
+  const cv::Mat& img = *f.image;
+  if (img.channels() == 3) {
+    cv::cvtColor(img, cur_gray_, cv::COLOR_BGR2GRAY);
+  } else {
+    img.copyTo(cur_gray_);
+  }
+  const int64_t gap = f.frame_no >= 0 && prev_frame_no_ >= 0 ? f.frame_no - prev_frame_no_ : -1;
+  if (gap > 0 && gap <= 8 && prev_gray_.size == cur_gray_.size) {
+    ChangeDetectionParams scaled = params_;
+    scaled.stationary_translation *= double(gap);
+    scaled.stationary_rotation_deg *= double(gap);
+    const Pose pw = prev_T_.inverse(), cw = f.T_cam_world.inverse();
+    if (camera_is_stationary(scaled, pw.R, pw.t, cw.R, cw.t)) {
+      cv::calcOpticalFlowFarneback(prev_gray_, cur_gray_, flow_, 0.5, 3, 15, 3, 5, 1.2, 0);
+      st.flow_computed = true;
+      fx_.resize(f.count);
+      fy_.resize(f.count);
+      keep_.assign(f.count, 1);
+      for (int i = 0; i < f.count; ++i) {
+        fx_[i] = f.un[i].x;
+        fy_[i] = f.un[i].y;
+        if (f.point_of[i] < 0) keep_[i] = 0;
+      }
+      reject_by_flow(flow_, fx_.data(), fy_.data(), f.count, params_.flow_threshold_px * gap,
+                     keep_.data());
+      for (int i = 0; i < f.count; ++i) {
+        if (f.point_of[i] < 0 || keep_[i]) continue;
+        ++st.flow_moved;
+        MapPoint* p = map.point(f.point_of[i]);
+        if (p != nullptr && counter_event(map, p->id, LandmarkEvent::kMatchedMoved)) {
+          invalidate(*p, st, invalidated, InvalidationCause::kMovedFlow);
+        }
+      }
+    }
+  }
+  std::swap(prev_gray_, cur_gray_);
+  prev_T_ = f.T_cam_world;
+  prev_frame_no_ = f.frame_no;
+}
+
 MapUpdateStats MapUpdater::update(Map& map, const cv::Mat& image, const Pose& T_cam_world,
                                   const Features& features, const std::vector<int64_t>& point_of,
                                   std::vector<int64_t>* invalidated) {
+  UpdateFrame f;
+  f.image = &image;
+  f.T_cam_world = T_cam_world;
+  f.un = features.un.data();
+  f.point_of = point_of.data();
+  f.count = std::min<int>(features.count, static_cast<int>(point_of.size()));
+  return update(map, f, invalidated, nullptr);
+}
+
+MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
+                                  std::vector<int64_t>* invalidated,
+                                  std::vector<InvalidationRecord>* records) {
   MapUpdateStats st;
-  if (!params_.map_update || image.empty() || map.keyframes.empty()) return st;
+  records_ = records;
+  if (!params_.map_update || frame.image == nullptr || frame.image->empty() ||
+      map.keyframes.empty()) {
+    return st;
+  }
+  const cv::Mat& image = *frame.image;
+  const Pose& T_cam_world = frame.T_cam_world;
+
+  // Second paper's counters, matched events: a tracked point is "still", a point the robust
+  // estimator rejected in this frame is "moved" (matched where the camera motion says it is
+  // not); too many moved events in a row discard it.
+  if (params_.landmark_counters) {
+    if (params_.flow_rejection && frame.frame_no >= 0) flow_events(map, frame, st, invalidated);
+    for (int i = 0; i < frame.rejected_count; ++i) {
+      MapPoint* p = map.point(frame.rejected[i]);
+      if (p != nullptr && p->valid && counter_event(map, p->id, LandmarkEvent::kMatchedMoved)) {
+        invalidate(*p, st, invalidated, InvalidationCause::kMovedRejected);
+      }
+    }
+  }
 
   // Candidate keyframes: valid ones with an image.
   kf_ids_.clear();
@@ -118,41 +240,55 @@ MapUpdateStats MapUpdater::update(Map& map, const cv::Mat& image, const Pose& T_
       cur_z, cur_c, z_axes_.data(), centres_.data(), static_cast<int>(kf_ids_.size()),
       params_.keyframe_view_angle_deg, params_.closest_keyframes, selected_.data(), kMaxSelected);
   st.keyframes_selected = nsel;
-  if (nsel == 0) return st;
-
-  compute_color_histogram(image, kHistogramStride, current_hist_);
-  if (!current_hist_.valid) return st;
 
   // Tracked points of this frame: phi(x') candidates, and the set Alg. 1 skips.
   tracked_.clear();
   tracked_ids_sorted_.clear();
-  const int nf = std::min<int>(features.count, static_cast<int>(point_of.size()));
-  for (int i = 0; i < nf; ++i) {
-    if (point_of[i] < 0) continue;
-    const MapPoint* p = map.point(point_of[i]);
+  for (int i = 0; i < frame.count; ++i) {
+    if (frame.point_of[i] < 0) continue;
+    const MapPoint* p = map.point(frame.point_of[i]);
     if (p == nullptr) continue;
+    const bool flowing = st.flow_computed && keep_[i] == 0;
+    if (params_.landmark_counters && !flowing) {
+      counter_event(map, p->id, LandmarkEvent::kMatchedStill);
+    }
     const Eigen::Vector3d pc = T_cam_world * p->p_world;
     if (pc.z() <= 1e-9) continue;
     Tracked t;
-    t.pixel = Eigen::Vector2d(features.un[i].x, features.un[i].y);
+    t.pixel = Eigen::Vector2d(frame.un[i].x, frame.un[i].y);
     t.p_world = p->p_world;
     t.depth = pc.z();
     t.id = p->id;
     tracked_.push_back(t);
     tracked_ids_sorted_.push_back(p->id);
   }
+  if (nsel == 0) return st;
+  compute_color_histogram(image, kHistogramStride, current_hist_);
+  if (!current_hist_.valid) return st;
   std::sort(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end());
   build_grid(image.cols, image.rows);
 
   const int h = params_.window / 2;
+  const size_t min_obs = static_cast<size_t>(std::max(1, params_.min_observations));
+  // Pass 1: every valid, established, untracked point of the triggered keyframes that projects
+  // into the view, with eq. (2) against each of those keyframes where the view test passes.
+  // A point is judged once per frame on its best reference (the smallest D_c): it changed
+  // only if it looks different from every selected keyframe that saw it (deviation: the
+  // listing loops keyframe by keyframe, so one oblique or badly exposed reference view alone
+  // would invalidate a point the others still see unchanged).
+  candidates_.clear();
+  triggered_.clear();
   for (int s = 0; s < nsel; ++s) {
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
     const ColorHistogram& kh = keyframe_histogram(*kf);
-    if (!kh.valid || histogram_difference(kh, current_hist_) <= params_.histogram_threshold) {
+    // histogram_threshold 0: every selected keyframe is checked (even an identical image).
+    if (!kh.valid || (params_.histogram_threshold > 0 &&
+                      histogram_difference(kh, current_hist_) <= params_.histogram_threshold)) {
       continue;
     }
     ++st.keyframes_triggered;
+    triggered_.push_back(kf->id);
     const Eigen::Vector3d kf_c = kf->T_cam_world.centre();
     const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
     for (int i = 0; i < kn; ++i) {
@@ -169,39 +305,106 @@ MapUpdateStats MapUpdater::update(Map& map, const cv::Mat& image, const Pose& T_
       if (xp.x() < h || xp.y() < h || xp.x() >= image.cols - h || xp.y() >= image.rows - h) {
         continue;  // not in the current view
       }
+      if (p->obs.size() < min_obs) {
+        ++st.points_not_established;
+        continue;
+      }
       const Eigen::Vector3d pk = kf->T_cam_world * p->p_world;
       if (pk.z() <= 1e-9) continue;
-      const Eigen::Vector3d n_x = (kf_c - p->p_world).normalized();
-      const Eigen::Vector3d n_xp = (cur_c - p->p_world).normalized();
-      double d_c = std::numeric_limits<double>::infinity();
+      // The reference view must agree with the point: X reprojects onto the keyframe's feature
+      // (chi2 95% for 2 dof at the feature's scale, the mapper's own triangulation gate);
+      // otherwise X or that keyframe's pose is off and eq. (2) would compare other pixels.
+      const Eigen::Vector2d un(kf->features.un[i].x, kf->features.un[i].y);
+      const double sig = kf->features.scale[i];
+      if ((K_.project(pk) - un).squaredNorm() > 5.991 * sig * sig) {
+        ++st.points_inconsistent;
+        continue;
+      }
+      Candidate c;
+      c.id = pid;
+      c.kf = kf->id;
+      c.feat = i;
+      c.n_x = (kf_c - p->p_world).normalized();
+      c.n_xp = (cur_c - p->p_world).normalized();
+      c.xp = xp;
+      c.depth = pc.z();
+      c.d_c = std::numeric_limits<double>::infinity();
       // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
-      if (n_x.dot(n_xp) >= params_.tau_n) {
+      if (c.n_x.dot(c.n_xp) >= params_.tau_n) {
         const cv::Point2f& kp = kf->features.kps[i].pt;
-        d_c = appearance_difference(kf->image, Eigen::Vector2d(kp.x, kp.y), image, xp,
-                                    pk.z() / pc.z(), params_.window, params_.search_d);
+        c.d_c = appearance_difference(kf->image, Eigen::Vector2d(kp.x, kp.y), image, xp,
+                                      pk.z() / pc.z(), params_.window, params_.search_d,
+                                      params_.normalise_appearance);
       }
-      const Keyframe* first = first_keyframe(map, *p);
-      Eigen::Vector2d x_first(-1e9, -1e9);
-      if (first != nullptr) {
-        const Eigen::Vector3d pf = first->T_cam_world * p->p_world;
-        if (pf.z() > 1e-9) x_first = K_.project(pf);
-      }
-      int nn = 0;
-      if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
-        nn = gather_neighbours(xp, first);
-      }
-      const PointDecision d =
-          update_point_validity(params_, n_x, n_xp, d_c, pc.z(), x_first, neighbours_.data(), nn);
-      ++st.points_checked;
-      ++st.decisions[static_cast<int>(d)];
-      if (is_invalidation(d)) {
-        p->valid = false;
-        ++st.points_invalidated;
-        if (invalidated != nullptr) invalidated->push_back(pid);
-      }
+      candidates_.push_back(c);
     }
-    // Sec. 4's 90% rule on the checked keyframe.
+  }
+  // Pass 2: per point, the best reference (view test passed and smallest D_c first).
+  std::sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) {
+    if (a.id != b.id) return a.id < b.id;
+    const bool va = a.n_x.dot(a.n_xp) >= params_.tau_n, vb = b.n_x.dot(b.n_xp) >= params_.tau_n;
+    if (va != vb) return va;
+    const bool fa = std::isfinite(a.d_c), fb = std::isfinite(b.d_c);
+    if (fa != fb) return fa;
+    return a.d_c < b.d_c;
+  });
+  for (size_t k = 0; k < candidates_.size(); ++k) {
+    if (k > 0 && candidates_[k].id == candidates_[k - 1].id) continue;
+    const Candidate& c = candidates_[k];
+    MapPoint* p = map.point(c.id);
+    if (p == nullptr || !p->valid) continue;
+    const Keyframe* first = first_keyframe(map, *p);
+    Eigen::Vector2d x_first(-1e9, -1e9);
+    if (first != nullptr) {
+      const Eigen::Vector3d pf = first->T_cam_world * p->p_world;
+      if (pf.z() > 1e-9) x_first = K_.project(pf);
+    }
+    int nn = 0;
+    if (std::isfinite(c.d_c) && c.d_c > params_.tau_c && params_.occlusion_handling) {
+      nn = gather_neighbours(c.xp, first);
+    }
+    const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, c.d_c, c.depth, x_first,
+                                                  neighbours_.data(), nn);
+    ++st.points_checked;
+    ++st.decisions[static_cast<int>(d)];
+    if (is_invalidation(d)) {
+      // A change is a lasting state; a verdict caused by something passing (a moving object's
+      // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive
+      // change verdicts (1: the paper's immediate decision).
+      if (++confirm_[c.id] < params_.confirm_checks) continue;
+      confirm_.erase(c.id);
+      const InvalidationCause cause =
+          d == PointDecision::kInvalidNothingInFront ? InvalidationCause::kNothingInFront
+          : d == PointDecision::kInvalidSameObject   ? InvalidationCause::kSameObject
+                                                     : InvalidationCause::kNoOcclusionHandling;
+      invalidate(*p, st, invalidated, cause, c.d_c, c.kf);
+      continue;
+    }
+    if (d == PointDecision::kKeepSameAppearance) {
+      confirm_.erase(c.id);
+      counter_event(map, c.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
+    }
+    if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
+        counter_event(map, c.id, LandmarkEvent::kMissed)) {
+      // Second paper's miss counter, restricted to the one case Algorithm 1 cannot decide:
+      // X looks different and nothing tracked is near it. A moving occluder passes; when the
+      // case persists for miss_threshold checks the "occluder" has not moved on, i.e. X's
+      // surface is gone and nothing trackable replaced it (e.g. a plain wall).
+      invalidate(*p, st, invalidated, InvalidationCause::kMissed, c.d_c, c.kf);
+    }
+  }
+  if (confirm_.size() > map.points.size() + 1024) {
+    for (auto it = confirm_.begin(); it != confirm_.end();) {
+      const MapPoint* p = map.point(it->first);
+      it = p != nullptr && p->valid ? std::next(it) : confirm_.erase(it);
+    }
+  }
+  // Sec. 4's 90% rule on the checked keyframes.
+  for (int kid : triggered_) {
+    Keyframe* kf = map.keyframe(kid);
+    if (kf == nullptr || kf->fixed || !kf->valid) continue;
     int invalid = 0, shared = 0, total = 0;
+    const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
     for (int i = 0; i < kn; ++i) {
       const MapPoint* p = kf->point_of[i] >= 0 ? map.point(kf->point_of[i]) : nullptr;
       if (p == nullptr) continue;
@@ -212,7 +415,7 @@ MapUpdateStats MapUpdater::update(Map& map, const cv::Mat& image, const Pose& T_
         ++shared;
       }
     }
-    if (!kf->fixed && keyframe_is_invalid(invalid, shared, total, params_.keyframe_invalid_ratio)) {
+    if (keyframe_is_invalid(invalid, shared, total, params_.keyframe_invalid_ratio)) {
       kf->valid = false;
       ++st.keyframes_invalidated;
     }

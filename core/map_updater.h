@@ -1,16 +1,34 @@
 // Online 3D point and keyframe updating of RDSLAM Section 4 (Algorithm 1) applied to the map.
 //
-// For one tracked frame (image, pose, features and the map ids of the tracked features) the
-// updater selects the `closest_keyframes` valid keyframes (optical axis within
-// `keyframe_view_angle_deg`, nearest camera centres), compares each one's colour histogram
-// with the frame's, and only when the sum of R, G, B distances exceeds `histogram_threshold`
-// runs Algorithm 1 (core/change_detection.h) on that keyframe's valid points that are not
-// tracked in this frame (a tracked point was just observed, so it is present). Points Alg. 1
-// declares changed get V(X) = 0; a checked keyframe whose invalid plus shared points exceed
-// `keyframe_invalid_ratio` of its points is marked invalid (the 90% rule). Invalid points
-// leave the matching index at the mapper's next publish (core/mapper.cpp skips !valid).
-// With `map_update = false` update() does nothing (Figure 9 ablation); with
-// `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
+// Input: one tracked frame (UpdateFrame: image, pose, the tracked features' pixels and map ids,
+// the ids PARSAC rejected). The mapper calls it for every keyframe candidate and for the
+// tracker's frame observations (every dynamic.check_every_n_frames tracked frames,
+// core/keyframe.h). Per call:
+//  1. select the `closest_keyframes` valid keyframes (optical axis within
+//     `keyframe_view_angle_deg`, nearest camera centres); a keyframe is checked when its colour
+//     histogram differs from the frame's by more than `histogram_threshold` (default 0:
+//     always, see below);
+//  2. gather the checked keyframes' valid points that are not tracked in this frame, project
+//     into the view, are observed by >= `min_observations` keyframes and reproject onto the
+//     keyframe's feature (chi2 95%); eq. (2) against each such keyframe passing the view test;
+//  3. run Algorithm 1 once per point on its best reference (smallest D_c); a change verdict
+//     must repeat in `confirm_checks` consecutive checks before V(X) = 0;
+//  4. the second paper's counters (`landmark_counters`): a tracked point is "still" (counts
+//     reset), a PARSAC-rejected point (or, with `flow_rejection` and a stationary camera, a
+//     tracked point on dense optical flow) is "moved", Alg. 1's "occluded by an untracked,
+//     i.e. moving, object" verdict is "missed"; above moved_threshold / miss_threshold the
+//     point is discarded (V(X) = 0);
+//  5. the 90% rule on every checked keyframe.
+// Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
+// !valid; an observation that invalidated points publishes at once); invalid keyframes are
+// removed by the mapper. With `map_update = false` update() does nothing (Figure 9 ablation);
+// with `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
+//
+// Deviations from the paper (argued where the parameters are declared, core/change_detection.h,
+// and in docs/slam.md "Map updating"): histogram trigger default 0, normalised eq. (2),
+// established points only, best reference per point, confirmation of change verdicts, the
+// miss counter restricted to Alg. 1's undecidable case (a plain "not matched" count would
+// discard every point occluded for a few frames, against Alg. 1's purpose).
 //
 // "Shared" points of the 90% rule are those observed by at least 3 other keyframes, the same
 // reading as the mapper's keyframe culling (core/mapper.h).
@@ -19,10 +37,13 @@
 // uses the raw keypoint in the keyframe and the ideal projection in the current frame, exact
 // for undistorted sources (synthetic, rectified datasets).
 //
+// params() returns the parameters in use: with normalise_appearance, tau_c holds
+// tau_c_relative (the threshold of the normalised score).
+//
 // Ownership: the caller (the mapper) owns the Map and passes it in; the updater owns only its
-// scratch buffers and the per-keyframe histogram cache. Threads: one thread (the mapper's).
-// Allocation: buffers grow during warm-up and are reused; the histogram cache allocates once
-// per new keyframe (keyframes are rare).
+// scratch buffers, the per-keyframe histogram cache, the confirmation counts and the previous
+// observation's grey image (flow). Threads: one thread (the mapper's). Allocation: buffers
+// grow during warm-up and are reused; the histogram cache allocates once per new keyframe.
 #pragma once
 
 #include <Eigen/StdVector>
@@ -37,6 +58,21 @@
 
 namespace rdslam {
 
+// One tracked frame as the updater sees it: pose, image, the tracked features (undistorted
+// pixels and map point ids, -1 = untracked, skipped) and the ids the robust estimator rejected
+// in this frame. frame_no (the tracker's tracked-frame counter, -1 unknown) lets the optional
+// optical-flow test know how many frames separate two observations.
+struct UpdateFrame {
+  const cv::Mat* image = nullptr;
+  Pose T_cam_world;
+  const cv::Point2f* un = nullptr;
+  const int64_t* point_of = nullptr;
+  int count = 0;
+  const int64_t* rejected = nullptr;
+  int rejected_count = 0;
+  int64_t frame_no = -1;
+};
+
 struct MapUpdateStats {
   int keyframes_selected = 0;     // closest keyframes found
   int keyframes_triggered = 0;    // of those, histogram difference above the threshold
@@ -44,6 +80,28 @@ struct MapUpdateStats {
   int points_invalidated = 0;     // V(X) set to 0 in this call
   int keyframes_invalidated = 0;  // keyframes newly marked invalid in this call
   int decisions[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
+  int points_not_established = 0;               // skipped: fewer than min_observations
+  int points_inconsistent = 0;  // skipped: X does not reproject onto the keyframe's feature
+  int counter_discards = 0;     // of points_invalidated: by the counters
+  int flow_moved = 0;           // tracked points on flowing regions
+  bool flow_computed = false;   // camera stationary: flow ran this frame
+};
+
+// Why a point was invalidated (tests and diagnostics): an Algorithm 1 decision or a counter.
+enum class InvalidationCause : uint8_t {
+  kNothingInFront = 0,   // Alg. 1: all neighbours at or behind X
+  kSameObject,           // Alg. 1: a nearer neighbour close to X in its first keyframe
+  kNoOcclusionHandling,  // ablation: appearance alone
+  kMovedRejected,        // counter: rejected by the robust estimator moved_threshold times
+  kMovedFlow,            // counter: matched on a flowing region while stationary
+  kMissed,               // counter: "occluded by a moving object" for miss_threshold checks
+};
+const char* to_string(InvalidationCause c);
+struct InvalidationRecord {
+  int64_t id = -1;
+  InvalidationCause cause = InvalidationCause::kNothingInFront;
+  double d_c = 0.0;   // eq. (2) value (Alg. 1 causes)
+  int keyframe = -1;  // keyframe whose point list contained X (Alg. 1 causes)
 };
 
 class MapUpdater {
@@ -56,6 +114,11 @@ class MapUpdater {
   MapUpdateStats update(Map& map, const cv::Mat& image, const Pose& T_cam_world,
                         const Features& features, const std::vector<int64_t>& point_of,
                         std::vector<int64_t>* invalidated = nullptr);
+  // The general form (frame observations of the tracker, core/keyframe.h). `records`
+  // (optional) receives one entry per point invalidated, with the cause.
+  MapUpdateStats update(Map& map, const UpdateFrame& frame,
+                        std::vector<int64_t>* invalidated = nullptr,
+                        std::vector<InvalidationRecord>* records = nullptr);
 
   const ChangeDetectionParams& params() const { return params_; }
 
@@ -71,6 +134,11 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  bool counter_event(Map& map, int64_t id, LandmarkEvent e);
+  void flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
+                   std::vector<int64_t>* invalidated);
+  void invalidate(MapPoint& p, MapUpdateStats& st, std::vector<int64_t>* invalidated,
+                  InvalidationCause cause, double d_c = 0.0, int kf = -1);
 
   ChangeDetectionParams params_;
   PinholeIntrinsics K_;
@@ -86,6 +154,26 @@ class MapUpdater {
   int grid_cols_ = 0, grid_rows_ = 0;
   double cell_px_ = 20.0;
   std::vector<NeighbourPoint, Eigen::aligned_allocator<NeighbourPoint>> neighbours_;
+  struct Candidate {
+    int64_t id = -1;
+    int kf = -1, feat = -1;
+    Eigen::Vector3d n_x, n_xp;
+    Eigen::Vector2d xp;
+    double depth = 0.0, d_c = 0.0;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  std::vector<Candidate, Eigen::aligned_allocator<Candidate>> candidates_;
+  std::vector<int> triggered_;
+  // Consecutive change verdicts per point (confirm_checks); entries of points that became
+  // invalid or were erased are purged when the table outgrows the map.
+  std::unordered_map<int64_t, int> confirm_;
+  // Optical flow (dynamic.flow_rejection): the previous observation.
+  cv::Mat prev_gray_, cur_gray_, flow_;
+  Pose prev_T_;
+  int64_t prev_frame_no_ = -1;
+  std::vector<float> fx_, fy_;
+  std::vector<uint8_t> keep_;
+  std::vector<InvalidationRecord>* records_ = nullptr;  // of the update() call in progress
 };
 
 }  // namespace rdslam

@@ -39,24 +39,78 @@ void Mapper::set_change_detection(const ChangeDetectionParams& p) {
 
 bool Mapper::step(int timeout_ms) {
   KeyframeCandidate* c = link_->candidates.front();
-  if (!c) {
+  FrameObservation* o = c ? nullptr : link_->observations.front();
+  if (!c && !o) {
     const uint32_t ticket = link_->bell.ticket();
     c = link_->candidates.front();
-    if (!c && timeout_ms > 0) {
+    o = c ? nullptr : link_->observations.front();
+    if (!c && !o && timeout_ms > 0) {
       link_->bell.wait(ticket, timeout_ms);
       c = link_->candidates.front();
+      o = c ? nullptr : link_->observations.front();
     }
-    if (!c) {
+    if (!c && !o) {
       link_->index.collect();
       return false;
     }
   }
   link_->mapper_busy.store(1, std::memory_order_relaxed);
-  process(*c);
-  link_->candidates.pop();
+  if (c) {
+    process(*c);
+    link_->candidates.pop();
+  } else {
+    process_observation(*o);
+    link_->observations.pop();
+  }
   link_->mapper_busy.store(0, std::memory_order_release);
   link_->mapped.ring();
   return true;
+}
+
+void Mapper::account(const MapUpdateStats& u) {
+  stats_.points_invalidated += u.points_invalidated;
+  stats_.keyframes_invalidated += u.keyframes_invalidated;
+  stats_.points_counter_discarded += u.counter_discards;
+  link_->invalidated_points.fetch_add(u.points_invalidated, std::memory_order_relaxed);
+}
+
+int Mapper::remove_invalid_keyframes() {
+  // Sec. 4: an invalid keyframe no longer describes the scene; removing it lets the tracker's
+  // keyframe rule (fewer points shared with the reference) select a new frame in its place.
+  // Its observations go with it; points left with fewer than 2 views go at the next cull.
+  std::vector<int> bad;
+  for (const auto& [id, k] : map_.keyframes) {
+    if (!k.valid && !k.fixed) bad.push_back(id);
+  }
+  for (int id : bad) {
+    if (map_.keyframes.size() <= 2) break;  // keep a map to track against
+    map_.erase_keyframe(id);
+    ++stats_.keyframes_replaced;
+    ++stats_.keyframes_culled;
+  }
+  return static_cast<int>(bad.size());
+}
+
+void Mapper::process_observation(const FrameObservation& o) {
+  if (!updater_ || o.epoch != epoch_ || map_.keyframes.empty()) return;
+  UpdateFrame f;
+  f.image = &o.image;
+  f.T_cam_world = o.T_cam_world;
+  f.un = o.un.data();
+  f.point_of = o.point_of.data();
+  f.count = o.tracked;
+  f.rejected = o.rejected_ids.data();
+  f.rejected_count = o.rejected;
+  f.frame_no = o.frame_no;
+  const auto t0 = std::chrono::steady_clock::now();
+  const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
+  stats_.update_ms_total +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  ++stats_.observations;
+  account(u);
+  if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
+  // Invalid points leave the tracker's matching index now, not at the next keyframe.
+  if (u.points_invalidated > 0 || u.keyframes_invalidated > 0) publish();
 }
 
 void Mapper::process(const KeyframeCandidate& c) {
@@ -72,14 +126,23 @@ void Mapper::process(const KeyframeCandidate& c) {
       return;
     case KeyframeCandidate::Kind::kKeyframe:
       if (c.epoch == epoch_ && !map_.keyframes.empty()) {
+        bool changed = false;
         if (updater_) {
-          const MapUpdateStats u =
-              updater_->update(map_, c.image, c.T_cam_world, c.features, c.point_of);
-          stats_.points_invalidated += u.points_invalidated;
-          stats_.keyframes_invalidated += u.keyframes_invalidated;
-          link_->invalidated_points.fetch_add(u.points_invalidated, std::memory_order_relaxed);
+          UpdateFrame f;
+          f.image = &c.image;
+          f.T_cam_world = c.T_cam_world;
+          f.un = c.features.un.data();
+          f.point_of = c.point_of.data();
+          f.count = std::min<int>(c.features.count, static_cast<int>(c.point_of.size()));
+          const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
+          account(u);
+          if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
+          changed = u.points_invalidated > 0 || u.keyframes_invalidated > 0;
         }
+        const int published = stats_.snapshots;
         handle_keyframe(c);
+        // A rejected candidate does not publish: invalid points still leave the index now.
+        if (changed && stats_.snapshots == published) publish();
       }
       return;
   }

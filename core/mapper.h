@@ -52,24 +52,38 @@ struct MapperStats {
   double last_ba_ms = 0.0;
   int snapshots = 0;
   int points_invalidated = 0, keyframes_invalidated = 0;  // Sec. 4 updating (MapUpdater)
+  int observations = 0;              // frame observations run through the updater
+  int keyframes_replaced = 0;        // invalid keyframes removed from the map
+  double update_ms_total = 0.0;      // wall time in MapUpdater::update (observations only)
+  int points_counter_discarded = 0;  // of points_invalidated: by the missed/moved counters
 };
 
 class Mapper {
  public:
   Mapper(const MapperParams& params, const FeatureParams& features, const CameraModel& camera,
          std::shared_ptr<SlamLink> link);
-  // Processes one candidate, waiting up to `timeout_ms` for one. False if there was none.
+  // Processes one candidate or, when no candidate waits (candidates are latency-critical),
+  // one frame observation (core/keyframe.h), waiting up to `timeout_ms` for either. False if
+  // there was none.
   bool step(int timeout_ms);
   const Map& map() const { return map_; }
   const MapperStats& stats() const { return stats_; }
   // Enables Sec. 4's online point and keyframe updating (core/map_updater.h): every keyframe
-  // candidate the tracker hands over (frame image, pose, tracked point ids) is checked against
-  // the map before it is inserted; invalid points leave the index at that insertion's publish.
-  // Call before the first step().
+  // candidate (before it is inserted) and every frame observation of the tracker (every
+  // dynamic.check_every_n_frames tracked frames) is checked against the map. Invalid
+  // keyframes (the 90% rule) are removed at once, so the tracker's keyframe rule replaces them
+  // with newly selected frames; invalid points leave the matching index at the next publish,
+  // which an observation that invalidated anything triggers itself. Call before the first
+  // step().
   void set_change_detection(const ChangeDetectionParams& p);
+  // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
+  void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
 
  private:
   void process(const KeyframeCandidate& c);
+  void process_observation(const FrameObservation& o);
+  void account(const MapUpdateStats& u);
+  int remove_invalid_keyframes();
   void handle_init(const KeyframeCandidate& c);
   void handle_keyframe(const KeyframeCandidate& c);
   std::vector<int> related_keyframes(int kf) const;
@@ -91,6 +105,7 @@ class Mapper {
   MapperStats stats_;
   std::vector<int> cand_;
   std::unique_ptr<MapUpdater> updater_;
+  std::vector<InvalidationRecord>* inval_log_ = nullptr;
   // Debug output only (SlamLink::debug_recent_invalid > 0): points seen invalid at a publish,
   // oldest first, bounded; and which ids were already listed (this map epoch).
   std::deque<std::pair<int64_t, Eigen::Vector3d>> recent_invalid_;

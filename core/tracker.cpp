@@ -375,13 +375,55 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   if (params_.sync_mapper) wait_for_mapper();
 }
 
+void Tracker::maybe_send_observation(const Frame& frame) {
+  if (link_->observe_every_n <= 0 || !snap_) return;
+  if (++frames_since_obs_ < link_->observe_every_n || frames_since_kf_ == 0) return;
+  FrameObservation* o = link_->observations.back();
+  if (!o) {
+    link_->observations_skipped.fetch_add(1, std::memory_order_relaxed);
+    return;  // the mapper is behind: the next observation is newer anyway
+  }
+  frames_since_obs_ = 0;
+  o->epoch = epoch_;
+  o->stamp_ns = frame.stamp_ns;
+  o->frame_no = track_no_;
+  o->T_cam_world = cur_.T;
+  frame.image.copyTo(o->image);
+  const size_t cap = cur_.pid.size();  // the feature cap: the slot grows once
+  if (o->un.size() < cap) {
+    o->un.resize(cap);
+    o->point_of.resize(cap);
+  }
+  int n = 0;
+  for (int j = 0; j < cur_.f.count; ++j) {
+    if (cur_.pid[j] < 0) continue;
+    o->un[n] = cur_.f.un[j];
+    o->point_of[n] = cur_.pid[j];
+    ++n;
+  }
+  o->tracked = n;
+  const MapSnapshot& s = *snap_;
+  if (o->rejected_ids.size() < cap) o->rejected_ids.resize(cap);
+  int nr = 0;
+  for (int r = 0; r < s.rows() && nr < static_cast<int>(cap); ++r) {
+    if (row_rejected_[r] == track_no_) o->rejected_ids[nr++] = s.ids[r];
+  }
+  o->rejected = nr;
+  link_->observations.commit();
+  link_->observations_sent.fetch_add(1, std::memory_order_relaxed);
+  link_->bell.ring();
+  // Lossless replay maps like the offline run (core/slam.h run_offline): the updater's
+  // invalidations reach the index before the next frame, so replays are deterministic.
+  if (params_.sync_mapper) wait_for_mapper();
+}
+
 void Tracker::wait_for_mapper() {
   // Sync mode: block until the ring is empty and the mapper idle (bounded waits, so a
   // stopped mapper cannot hang the tracker for more than a few seconds).
   const auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < 50; ++i) {
     const uint32_t ticket = link_->mapped.ticket();
-    if (link_->candidates.size_approx() == 0 &&
+    if (link_->candidates.size_approx() == 0 && link_->observations.size_approx() == 0 &&
         link_->mapper_busy.load(std::memory_order_acquire) == 0) {
       break;
     }
@@ -497,6 +539,7 @@ TrackResult Tracker::track(const Frame& frame) {
   }
   if (ok) {
     maybe_send_keyframe(frame);
+    maybe_send_observation(frame);
     fill_result(result);
     result.state = state_;
     const Pose Twc = cur_.T.inverse();

@@ -93,6 +93,10 @@ class Tracker {
   int robust_optimise(Pose& T, const Pose& guess);
   bool relocalize();
   void maybe_send_keyframe(const Frame& frame);
+  // Sec. 4 per-frame map updating: every SlamLink::observe_every_n tracked frames (not on a
+  // frame just proposed as a keyframe, which the mapper checks anyway) the tracked features,
+  // PARSAC's rejected points, the pose and the image go to the mapper (skipped when full).
+  void maybe_send_observation(const Frame& frame);
   void start_from_init(const InitResult& init, const Frame& frame);
   void reset_map();
   void fill_result(TrackResult& r) const;
@@ -129,6 +133,7 @@ class Tracker {
   bool have_last_ = false;
   Pose velocity_;
   int frames_since_kf_ = 0;
+  int frames_since_obs_ = 0;
   int lost_frames_ = 0;
   int64_t frame_no_ = 0;
 

@@ -234,6 +234,8 @@ int cmd_replay(int argc, char** argv) {
     w.value("feature_mode", cfg.slam.features.mode);
     w.value("map_points", map_points);
     w.value("keyframes", keyframes);
+    w.value("invalidated_points",
+            rr.frames.empty() ? int64_t{0} : rr.frames.back().result.invalidated_points);
     w.begin_object("tracker_ms");
     w.value("p50", rr.stages.tracker.percentile_ms(0.5));
     w.value("p99", rr.stages.tracker.percentile_ms(0.99));

@@ -199,3 +199,31 @@ TEST(FlowRejection, RejectsPointsOnAMovingBlockOnly) {
   EXPECT_EQ(keep[1], 1);
   EXPECT_EQ(keep[2], 1);
 }
+
+TEST(AppearanceDifference, NormalisedScoreIgnoresGainAndBiasButSeesATextureChange) {
+  cv::Mat kf(120, 160, CV_8UC3);
+  cv::RNG rng(3);
+  rng.fill(kf, cv::RNG::UNIFORM, 40, 200);
+  cv::GaussianBlur(kf, kf, cv::Size(5, 5), 1.2);
+  const Eigen::Vector2d x(80, 60);
+  cv::Mat lit;
+  kf.convertTo(lit, -1, 1.5, -30.0);  // gain 1.5, bias -30 (no clipping: 30..270 -> clipped)
+  const double same = appearance_difference(kf, x, lit, x, 1.0, 11, 2, true);
+  EXPECT_LT(same, 0.15);
+  // The plain SAD sees the lighting change as a large difference.
+  EXPECT_GT(appearance_difference(kf, x, lit, x, 1.0, 11, 2, false), 25.0);
+  // A flat window where the texture was: about 1 (the texture is gone).
+  cv::Mat flat(120, 160, CV_8UC3, cv::Scalar(128, 128, 128));
+  const double gone = appearance_difference(kf, x, flat, x, 1.0, 11, 2, true);
+  EXPECT_GT(gone, 0.9);
+  EXPECT_LT(gone, 1.1);
+  // An unrelated texture of the same contrast: well above the default threshold.
+  cv::Mat other(120, 160, CV_8UC3);
+  cv::RNG rng2(11);
+  rng2.fill(other, cv::RNG::UNIFORM, 40, 200);
+  cv::GaussianBlur(other, other, cv::Size(5, 5), 1.2);
+  EXPECT_GT(appearance_difference(kf, x, other, x, 1.0, 11, 2, true),
+            ChangeDetectionParams{}.tau_c_relative);
+  // A window without texture cannot be compared.
+  EXPECT_TRUE(std::isinf(appearance_difference(flat, x, kf, x, 1.0, 11, 2, true)));
+}
