@@ -188,8 +188,13 @@ void add_panels(QuadVec& out, const Eigen::Vector3d& top_left, const Eigen::Vect
   std::uniform_real_distribution<double> shade(0.85, 1.1);
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
-      SynthQuad q = quad(top_left + right * (i * pw) + down * (j * ph), right * pw, down * ph,
-                         texs[pick(rng)], albedo * shade(rng));
+      // Two draws in one argument list would be evaluated in an unspecified order (GCC:
+      // right to left on x86-64, left to right on aarch64, so the walls differed between
+      // the two). Sequenced here in the order x86-64 had, so its scenes stay the same.
+      const double gain = shade(rng);
+      const int tex = texs[pick(rng)];
+      SynthQuad q = quad(top_left + right * (i * pw) + down * (j * ph), right * pw, down * ph, tex,
+                         albedo * gain);
       out.push_back(q);
     }
   }
