@@ -21,6 +21,16 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "eq. (2) on bias- and gain-compensated windows (robust to lighting changes)");
   v.field("tau_c_relative", tau_c_relative, 0.0, 2.0,
           "appearance threshold of the normalised eq. (2), in units of the window's contrast");
+  v.field("ray_search", ray_search,
+          "search eq. (2) along the keyframe ray over the point's depth uncertainty");
+  v.field("ray_search_sigmas", ray_search_sigmas, 0.0, 10.0,
+          "depth uncertainty (in bearing-error sigmas) the ray search covers");
+  v.field("temporal_check", temporal_check,
+          "require the new appearance to be static before a point is invalidated");
+  v.field("temporal_max_gap_s", temporal_max_gap_s, 0.0, 10.0,
+          "oldest recent frame the temporal check may use (s)");
+  v.field("temporal_depth_margin", temporal_depth_margin, 0.0, 0.9,
+          "relative depth below the point's that counts as an occluder in front");
   v.field("r1", r1, 1.0, 200.0, "radius of phi(x') in pixels");
   v.field("r2", r2, 1.0, 200.0, "first-keyframe distance threshold in pixels");
   v.field("keyframe_invalid_ratio", keyframe_invalid_ratio, 0.0, 1.0,
@@ -261,6 +271,8 @@ const char* to_string(PointDecision d) {
       return "invalid:no-occlusion-handling";
     case PointDecision::kKeepNotChecked:
       return "keep:not-checked";
+    case PointDecision::kInvalidStaticChange:
+      return "invalid:static-change";
   }
   return "unknown";
 }
@@ -268,14 +280,21 @@ const char* to_string(PointDecision d) {
 PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen::Vector3d& n_x,
                                     const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
                                     const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,
-                                    int neighbour_count) {
+                                    int neighbour_count, NewSurface seen) {
   // Alg. 1 line 4 (sign as in the prose): large view change -> keep V(X) = 1.
   if (n_x.dot(n_x_prime) < p.tau_n) return PointDecision::kKeepViewAngle;
   if (!std::isfinite(d_c)) return PointDecision::kKeepNotChecked;
   if (d_c <= p.tau_c) return PointDecision::kKeepSameAppearance;
   if (!p.occlusion_handling) return PointDecision::kInvalidNoOcclusionHandling;
-  // phi(x') empty: X is hidden by something never tracked, i.e. a moving object.
-  if (neighbour_count <= 0) return PointDecision::kKeepOccludedMoving;
+  // What is in front of X now moves, or is a static surface in front of it: occluded.
+  if (seen == NewSurface::kMoving) return PointDecision::kKeepOccludedMoving;
+  if (seen == NewSurface::kInFront) return PointDecision::kKeepOccludedStatic;
+  // phi(x') empty: X is hidden by something never tracked, i.e. a moving object - unless what
+  // X's place shows now is static and not in front of X.
+  if (neighbour_count <= 0) {
+    return seen == NewSurface::kBehind ? PointDecision::kInvalidStaticChange
+                                       : PointDecision::kKeepOccludedMoving;
+  }
   bool all_behind = true;
   for (int i = 0; i < neighbour_count; ++i) all_behind &= neighbours[i].depth_current >= depth_x;
   if (all_behind) return PointDecision::kInvalidNothingInFront;

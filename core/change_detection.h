@@ -45,6 +45,25 @@ struct ChangeDetectionParams {
   // (0.7-0.8); a 1-2 px misregistration of a blurred texture stays well below it.
   bool normalise_appearance = true;
   double tau_c_relative = 0.8;
+  // Eq. (2)'s local search d extended along X's ray in the reference keyframe over X's depth
+  // uncertainty (ray_search_sigmas times the depth error a feature-scale bearing error gives at
+  // X's widest triangulation angle, clamped to [kMinRayDepthRatio, kMaxRayDepthRatio]).
+  // Deviation: the paper searches a small d around the projection, assuming an accurate depth;
+  // a monocular point triangulated over a short baseline is often several pixels off in a new
+  // view (measured on synth:rearrange: 199 of 200 false invalidations projected >= 8 px from
+  // the true surface point), so without it a static, visible point "changes".
+  bool ray_search = true;
+  double ray_search_sigmas = 3.0;
+  // What replaced X (see NewSurface): the current window at x' is compared with the previous
+  // checked frame's window at X's projection (eq. (2), same tau: moving or static) and, when
+  // static, matched along x''s ray into the recent frame with the widest baseline (its depth:
+  // in front of X or not). Addition to Algorithm 1 in the spirit of the second paper's
+  // optical-flow test, for the case the paper leaves open (nothing tracked near x'). Frames
+  // older than temporal_max_gap_s are not used; temporal_depth_margin is the relative depth
+  // below z_X that counts as "in front".
+  bool temporal_check = true;
+  double temporal_max_gap_s = 1.0;
+  double temporal_depth_margin = 0.1;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
   double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
   double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid
@@ -126,6 +145,10 @@ int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vec
 // deviation is below kMinAppearanceContrast grey levels (sensor noise level) is not compared
 // (+inf): it has no texture whose change could be seen.
 constexpr int kMaxAppearanceWindow = 31;
+constexpr double kMinRayDepthRatio = 0.05;  // ray search covers depth z/(1+r) .. z(1+r)
+constexpr double kMaxRayDepthRatio = 0.5;
+constexpr int kMaxRaySamples = 64;
+constexpr int kMaxDepthSamples = 96;  // temporal check: samples along x''s ray
 constexpr double kMaxAppearanceGain = 4.0;
 constexpr double kMinAppearanceContrast = 4.0;
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
@@ -150,11 +173,22 @@ enum class PointDecision : uint8_t {
   kInvalidSameObject,      // a nearer neighbour close to X in the first keyframe: X changed
   kInvalidNoOcclusionHandling,  // ablation: D_c > tau_c invalidates directly
   kKeepNotChecked,              // window outside the image or no appearance available
+  kInvalidStaticChange,         // phi(x') empty but the new appearance at x' is static
+};
+
+// What the current frame shows at x' where X looks changed (temporal_check): compared with
+// recent frames, is it moving, or a static surface in front of X, or at/behind X?
+enum class NewSurface : uint8_t {
+  kUnknown = 0,  // not decidable (no recent frames, too little baseline, window flat/outside)
+  kMoving,       // differs from the previous frame at X's projection: a moving object
+  kInFront,      // static, and two-view matching puts it clearly in front of X: an occluder
+  kBehind,       // static, at X's depth or behind it: X's surface changed or left
 };
 
 inline bool is_invalidation(PointDecision d) {
   return d == PointDecision::kInvalidNothingInFront || d == PointDecision::kInvalidSameObject ||
-         d == PointDecision::kInvalidNoOcclusionHandling;
+         d == PointDecision::kInvalidNoOcclusionHandling ||
+         d == PointDecision::kInvalidStaticChange;
 }
 const char* to_string(PointDecision d);
 
@@ -163,11 +197,17 @@ const char* to_string(PointDecision d);
 //  d_c: appearance difference of eq. (2) (pass +inf when it could not be computed);
 //  depth_x: z_X, depth of X in the current camera; x_p: X's projection into the keyframe where
 //  it first appeared; neighbours: phi(x'), the tracked points within r1 of x' (the caller
-//  gathers them, e.g. with a grid).
+//  gathers them, e.g. with a grid);
+//  seen: what the frame shows at x' (temporal_check, NewSurface). kMoving keeps V(X) = 1 (a
+//  moving object is in front of X, whatever the neighbours say); kInFront keeps it (a static
+//  occluder, the case Alg. 1 resolves with r2 when the occluder is tracked); kBehind turns
+//  "phi(x') empty: occluded by a moving object" into kInvalidStaticChange (what replaced X
+//  does not move and is not in front of X: X's surface changed, and nothing trackable, e.g. a
+//  plain floor, took its place); kUnknown is the paper's Algorithm 1 unchanged.
 PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen::Vector3d& n_x,
                                     const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
                                     const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,
-                                    int neighbour_count);
+                                    int neighbour_count, NewSurface seen = NewSurface::kUnknown);
 
 // "If the number of invalid 3D points and the common features shared with other keyframes is
 // larger than 90% of its total point number, we will label this keyframe as invalid."

@@ -26,6 +26,13 @@ MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrins
   neighbours_.resize(kMaxNeighbours);
 }
 
+void MapUpdater::reset() {
+  confirm_.clear();
+  kf_hist_.clear();
+  for (Recent& r : history_) r.stamp_ns = -1;
+  prev_frame_no_ = -1;
+}
+
 const ColorHistogram& MapUpdater::keyframe_histogram(const Keyframe& kf) {
   auto it = kf_hist_.find(kf.id);
   if (it != kf_hist_.end()) return it->second;
@@ -123,6 +130,8 @@ const char* to_string(InvalidationCause c) {
       return "counter:moved(flow)";
     case InvalidationCause::kMissed:
       return "counter:missed";
+    case InvalidationCause::kStaticChange:
+      return "alg1:static-change";
   }
   return "unknown";
 }
@@ -194,6 +203,130 @@ MapUpdateStats MapUpdater::update(Map& map, const cv::Mat& image, const Pose& T_
   return update(map, f, invalidated, nullptr);
 }
 
+double MapUpdater::ray_difference(Map& map, const MapPoint& p, const Keyframe& kf, int feat,
+                                  const cv::Mat& image, const Pose& T_cam_world) const {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // Depth uncertainty of X along the keyframe's ray from its widest triangulation angle: a
+  // bearing error of sigma px moves the depth by sigma / (f sin(parallax)) relative.
+  const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
+  double best_sin = 0.0;
+  for (const Observation& o : p.obs) {
+    const Keyframe* other = map.keyframe(o.kf);
+    if (other == nullptr || other == &kf) continue;
+    const double c = parallax_cos(p.p_world, kf_c, other->T_cam_world.centre());
+    best_sin = std::max(best_sin, std::sqrt(std::max(0.0, 1.0 - c * c)));
+  }
+  const double sigma = kf.features.scale[feat];
+  const double rel =
+      best_sin > 1e-6 ? params_.ray_search_sigmas * sigma / (K_.fx * best_sin) : kMaxRayDepthRatio;
+  const double delta = std::clamp(rel, kMinRayDepthRatio, kMaxRayDepthRatio);
+  const Eigen::Vector3d pk = kf.T_cam_world * p.p_world;
+  if (pk.z() <= 1e-9) return kInf;
+  // The ray through the keyframe's feature (unit depth bearing in world coordinates).
+  const Eigen::Vector3d bearing =
+      kf.T_cam_world.R.transpose() * K_.unproject(kf.features.un[feat].x, kf.features.un[feat].y);
+  const double inv_near = 1.0 / (pk.z() / (1.0 + delta)), inv_far = 1.0 / (pk.z() * (1.0 + delta));
+  const Eigen::Vector3d a = T_cam_world * (kf_c + bearing / inv_near);
+  const Eigen::Vector3d b = T_cam_world * (kf_c + bearing / inv_far);
+  if (a.z() <= 1e-9 || b.z() <= 1e-9) return kInf;
+  const double len = (K_.project(a) - K_.project(b)).norm();
+  // One sample per pixel of the segment (eq. (2)'s local search covers the pixel between),
+  // at most kMaxRaySamples: the far end of a long segment is not the point any more.
+  const int steps = std::clamp(static_cast<int>(std::ceil(len)), 1, kMaxRaySamples);
+  const cv::Point2f& kp = kf.features.kps[feat].pt;
+  double best = kInf;
+  for (int s = 0; s <= steps; ++s) {
+    const double inv_z = inv_near + (inv_far - inv_near) * s / steps;
+    const double z = 1.0 / inv_z;
+    const Eigen::Vector3d pc = T_cam_world * (kf_c + bearing * z);
+    if (pc.z() <= 1e-9) continue;
+    const double d = appearance_difference(
+        kf.image, Eigen::Vector2d(kp.x, kp.y), image, K_.project(pc), z / pc.z(), params_.window,
+        std::min(params_.search_d, 1), params_.normalise_appearance);
+    best = std::min(best, d);
+    if (best <= params_.tau_c) break;  // found: X's surface is still there
+  }
+  return best;
+}
+
+void MapUpdater::remember(const UpdateFrame& f) {
+  if (!params_.temporal_check || f.stamp_ns < 0) return;
+  Recent& r = history_[history_head_];
+  f.image->copyTo(r.image);
+  r.T_cam_world = f.T_cam_world;
+  r.stamp_ns = f.stamp_ns;
+  history_head_ = (history_head_ + 1) % kHistory;
+}
+
+NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
+                                   double depth, const cv::Mat& image, const Pose& T_cam_world,
+                                   int64_t stamp_ns) const {
+  if (!params_.temporal_check || stamp_ns < 0) return NewSurface::kUnknown;
+  const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
+  auto usable = [&](const Recent& r) {
+    return r.stamp_ns >= 0 && r.stamp_ns < stamp_ns && stamp_ns - r.stamp_ns <= max_gap &&
+           r.image.size == image.size && r.image.type() == image.type();
+  };
+  // 1. Moving or static: the newest recent frame's window at X's projection there, searched
+  // around x' (scale: depth ratio, near 1 for frames this close).
+  const Recent& last = history_[(history_head_ + kHistory - 1) % kHistory];
+  if (!usable(last)) return NewSurface::kUnknown;
+  const Eigen::Vector3d pl = last.T_cam_world * p_world;
+  if (pl.z() <= 1e-9) return NewSurface::kUnknown;
+  const double d_t =
+      appearance_difference(last.image, K_.project(pl), image, x_prime, pl.z() / depth,
+                            params_.window, params_.search_d, params_.normalise_appearance);
+  if (!std::isfinite(d_t)) return NewSurface::kUnknown;
+  if (d_t > params_.tau_c) return NewSurface::kMoving;
+  // 2. Static: where is it? Match the current window at x' along x''s ray into the recent
+  // frame with the widest baseline, over inverse depths from far behind X (1/(4 z_X)) to well
+  // in front (1/(0.25 z_X)); the best match's depth against z_X decides.
+  const Eigen::Vector3d c_cur = T_cam_world.centre();
+  const Recent* wide = nullptr;
+  double best_b = 0.0;
+  for (const Recent& r : history_) {
+    if (!usable(r)) continue;
+    const double b = (r.T_cam_world.centre() - c_cur).norm();
+    if (b > best_b) {
+      best_b = b;
+      wide = &r;
+    }
+  }
+  if (wide == nullptr) return NewSurface::kUnknown;
+  const Eigen::Vector3d ray = T_cam_world.R.transpose() * K_.unproject(x_prime.x(), x_prime.y());
+  auto pixel_at = [&](double z, double* z_other) {
+    const Eigen::Vector3d q = wide->T_cam_world * (c_cur + ray * z);
+    *z_other = q.z();
+    return K_.project(q);
+  };
+  // The depth resolution: X's depth and the "in front" boundary must project at least 2 px
+  // apart in the wide frame, or the baseline cannot tell them apart.
+  const double z_front = depth * (1.0 - params_.temporal_depth_margin);
+  double zo0 = 0, zo1 = 0;
+  const Eigen::Vector2d px_x = pixel_at(depth, &zo0), px_front = pixel_at(z_front, &zo1);
+  if (zo0 <= 1e-9 || zo1 <= 1e-9 || (px_x - px_front).norm() < 2.0) return NewSurface::kUnknown;
+  const double inv_far = 1.0 / (4.0 * depth), inv_near = 1.0 / (0.25 * depth);
+  double za = 0, zb = 0;
+  const double len = (pixel_at(1.0 / inv_far, &za) - pixel_at(1.0 / inv_near, &zb)).norm();
+  if (za <= 1e-9 || zb <= 1e-9) return NewSurface::kUnknown;
+  const int steps = std::clamp(static_cast<int>(std::ceil(len)), 2, kMaxDepthSamples);
+  double best = std::numeric_limits<double>::infinity(), best_z = 0;
+  for (int s = 0; s <= steps; ++s) {
+    const double z = 1.0 / (inv_far + (inv_near - inv_far) * s / steps);
+    double zw = 0;
+    const Eigen::Vector2d px = pixel_at(z, &zw);
+    if (zw <= 1e-9) continue;
+    const double d = appearance_difference(image, x_prime, wide->image, px, z / zw, params_.window,
+                                           1, params_.normalise_appearance);
+    if (d < best) {
+      best = d;
+      best_z = z;
+    }
+  }
+  if (!(best <= params_.tau_c)) return NewSurface::kUnknown;  // no consistent static match
+  return best_z < z_front ? NewSurface::kInFront : NewSurface::kBehind;
+}
+
 MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
                                   std::vector<int64_t>* invalidated,
                                   std::vector<InvalidationRecord>* records) {
@@ -205,6 +338,12 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   }
   const cv::Mat& image = *frame.image;
   const Pose& T_cam_world = frame.T_cam_world;
+  // This frame joins the recent frames of the temporal check when the call ends.
+  struct Remember {
+    MapUpdater& u;
+    const UpdateFrame& f;
+    ~Remember() { u.remember(f); }
+  } remember_frame{*this, frame};
 
   // Second paper's counters, matched events: a tracked point is "still", a point the robust
   // estimator rejected in this frame is "moved" (matched where the camera motion says it is
@@ -359,12 +498,23 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       const Eigen::Vector3d pf = first->T_cam_world * p->p_world;
       if (pf.z() > 1e-9) x_first = K_.project(pf);
     }
-    int nn = 0;
-    if (std::isfinite(c.d_c) && c.d_c > params_.tau_c && params_.occlusion_handling) {
-      nn = gather_neighbours(c.xp, first);
+    double d_c = c.d_c;
+    if (params_.ray_search && std::isfinite(d_c) && d_c > params_.tau_c) {
+      // Before calling X changed, look for its keyframe window along the keyframe's ray over
+      // X's depth uncertainty: a point triangulated from a short baseline projects a few
+      // pixels off its feature and would "change" in a static scene.
+      const Keyframe* kf = map.keyframe(c.kf);
+      if (kf != nullptr)
+        d_c = std::min(d_c, ray_difference(map, *p, *kf, c.feat, image, T_cam_world));
     }
-    const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, c.d_c, c.depth, x_first,
-                                                  neighbours_.data(), nn);
+    int nn = 0;
+    NewSurface seen = NewSurface::kUnknown;
+    if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
+      nn = gather_neighbours(c.xp, first);
+      seen = new_surface(p->p_world, c.xp, c.depth, image, T_cam_world, frame.stamp_ns);
+    }
+    const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, d_c, c.depth, x_first,
+                                                  neighbours_.data(), nn, seen);
     ++st.points_checked;
     ++st.decisions[static_cast<int>(d)];
     if (is_invalidation(d)) {
@@ -376,8 +526,9 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       const InvalidationCause cause =
           d == PointDecision::kInvalidNothingInFront ? InvalidationCause::kNothingInFront
           : d == PointDecision::kInvalidSameObject   ? InvalidationCause::kSameObject
+          : d == PointDecision::kInvalidStaticChange ? InvalidationCause::kStaticChange
                                                      : InvalidationCause::kNoOcclusionHandling;
-      invalidate(*p, st, invalidated, cause, c.d_c, c.kf);
+      invalidate(*p, st, invalidated, cause, d_c, c.kf);
       continue;
     }
     if (d == PointDecision::kKeepSameAppearance) {
@@ -390,7 +541,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       // X looks different and nothing tracked is near it. A moving occluder passes; when the
       // case persists for miss_threshold checks the "occluder" has not moved on, i.e. X's
       // surface is gone and nothing trackable replaced it (e.g. a plain wall).
-      invalidate(*p, st, invalidated, InvalidationCause::kMissed, c.d_c, c.kf);
+      invalidate(*p, st, invalidated, InvalidationCause::kMissed, d_c, c.kf);
     }
   }
   if (confirm_.size() > map.points.size() + 1024) {

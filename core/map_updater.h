@@ -71,6 +71,7 @@ struct UpdateFrame {
   const int64_t* rejected = nullptr;
   int rejected_count = 0;
   int64_t frame_no = -1;
+  int64_t stamp_ns = -1;  // capture time (temporal check; -1 unknown)
 };
 
 struct MapUpdateStats {
@@ -79,8 +80,8 @@ struct MapUpdateStats {
   int points_checked = 0;         // points run through Algorithm 1
   int points_invalidated = 0;     // V(X) set to 0 in this call
   int keyframes_invalidated = 0;  // keyframes newly marked invalid in this call
-  int decisions[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
-  int points_not_established = 0;               // skipped: fewer than min_observations
+  int decisions[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
+  int points_not_established = 0;                  // skipped: fewer than min_observations
   int points_inconsistent = 0;  // skipped: X does not reproject onto the keyframe's feature
   int counter_discards = 0;     // of points_invalidated: by the counters
   int flow_moved = 0;           // tracked points on flowing regions
@@ -95,6 +96,7 @@ enum class InvalidationCause : uint8_t {
   kMovedRejected,        // counter: rejected by the robust estimator moved_threshold times
   kMovedFlow,            // counter: matched on a flowing region while stationary
   kMissed,               // counter: "occluded by a moving object" for miss_threshold checks
+  kStaticChange,         // Alg. 1 + temporal check: nothing tracked near, new appearance static
 };
 const char* to_string(InvalidationCause c);
 struct InvalidationRecord {
@@ -121,6 +123,9 @@ class MapUpdater {
                         std::vector<InvalidationRecord>* records = nullptr);
 
   const ChangeDetectionParams& params() const { return params_; }
+  // Forgets per-map state (confirmation counts, histograms, the previous frame): the mapper
+  // calls it when the map is reset.
+  void reset();
 
  private:
   struct Tracked {
@@ -134,6 +139,10 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  // Eq. (2) searched along the keyframe's ray through X's feature over X's depth uncertainty
+  // (ChangeDetectionParams::ray_search); the smallest D_c found (+inf: not computable).
+  double ray_difference(Map& map, const MapPoint& p, const Keyframe& kf, int feat,
+                        const cv::Mat& image, const Pose& T_cam_world) const;
   bool counter_event(Map& map, int64_t id, LandmarkEvent e);
   void flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
                    std::vector<int64_t>* invalidated);
@@ -167,6 +176,20 @@ class MapUpdater {
   // Consecutive change verdicts per point (confirm_checks); entries of points that became
   // invalid or were erased are purged when the table outgrows the map.
   std::unordered_map<int64_t, int> confirm_;
+  // Temporal check (dynamic.temporal_check): the last kHistory checked frames (images copied
+  // into buffers reused after warm-up), newest at history_[(history_head_ - 1) mod kHistory].
+  static constexpr int kHistory = 6;
+  struct Recent {
+    cv::Mat image;
+    Pose T_cam_world;
+    int64_t stamp_ns = -1;
+  };
+  NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
+                         double depth, const cv::Mat& image, const Pose& T_cam_world,
+                         int64_t stamp_ns) const;
+  void remember(const UpdateFrame& f);
+  Recent history_[kHistory];
+  int history_head_ = 0;
   // Optical flow (dynamic.flow_rejection): the previous observation.
   cv::Mat prev_gray_, cur_gray_, flow_;
   Pose prev_T_;

@@ -102,6 +102,7 @@ void Mapper::process_observation(const FrameObservation& o) {
   f.rejected = o.rejected_ids.data();
   f.rejected_count = o.rejected;
   f.frame_no = o.frame_no;
+  f.stamp_ns = o.stamp_ns;
   const auto t0 = std::chrono::steady_clock::now();
   const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
   stats_.update_ms_total +=
@@ -117,6 +118,7 @@ void Mapper::process(const KeyframeCandidate& c) {
   switch (c.kind) {
     case KeyframeCandidate::Kind::kReset:
       map_ = Map();
+      if (updater_) updater_->reset();
       epoch_ = c.epoch;
       link_->keyframes.store(0);
       link_->points.store(0);
@@ -134,6 +136,7 @@ void Mapper::process(const KeyframeCandidate& c) {
           f.un = c.features.un.data();
           f.point_of = c.point_of.data();
           f.count = std::min<int>(c.features.count, static_cast<int>(c.point_of.size()));
+          f.stamp_ns = c.stamp_ns;
           const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
           account(u);
           if (u.keyframes_invalidated > 0) remove_invalid_keyframes();

@@ -48,6 +48,13 @@ struct Invalidation {
   int frame = 0;      // frame after which V(X) was seen 0
   int ref_frame = 0;  // frame of the point's first keyframe
   Eigen::Vector3d p_slam{0, 0, 0};
+  Eigen::Vector3d p_true{0, 0, 0};  // feature_surface_point() (NaN: no surface)
+};
+
+struct EpisodeRecall {
+  std::string object;
+  int start = 0, end = 0;
+  int moved = 0, invalidated = 0, removed = 0;
 };
 
 struct DynResult {
@@ -73,25 +80,56 @@ struct DynResult {
   int invalid_in_index = 0, index_rows = 0;
   int keyframes_accepted = 0, keyframes_culled = 0, keyframes_replaced = 0, observations = 0;
   double update_ms = 0;
+  std::vector<EpisodeRecall> episodes;
 };
 
 constexpr int kFrames = 240;
-constexpr int kSnapshot = 59;             // last frame before the poster starts moving
-constexpr int kMoveEnd = 80;              // poster move ends
-constexpr int kDeadline = kMoveEnd + 30;  // issue 8: invalidated within 30 frames of the move
-constexpr double kTol = 0.01;             // point_fate tolerance on exact surface points (m)
+constexpr int kSnapshot = 59;  // last frame before the first move (the poster's)
+constexpr int kWithin = 30;    // issue 8: invalidated within 30 frames of the move
 
-// The surface point a map point stands for: the first surface hit at `ref` by the ray from the
-// true camera centre through the aligned point (SLAM depth is less accurate than its bearing).
-// False when nothing is hit or the hit is more than 10% off the point's depth (a bad point).
-bool surface_point(const SynthScene& scene, int ref, const Eigen::Vector3d& pw,
-                   Eigen::Vector3d& out) {
-  const Eigen::Vector3d o = scene.T_world_cam.at(ref).translation();
-  const Eigen::Vector3d dir = pw - o;
+// A change of the scene: an object moving (or vanishing) over frames [start, end].
+struct Episode {
+  int object_id = 0;
+  int start = 0, end = 0;
+};
+
+// Every change episode of the scene's objects that was visible before it started and ends at
+// least kWithin frames before the run does (so its deadline can be evaluated).
+std::vector<Episode> change_episodes(const SynthScene& scene, int frames) {
+  std::vector<Episode> out;
+  for (const SynthObject& o : scene.objects) {
+    int start = -1;
+    for (int k = 1; k < frames; ++k) {
+      const bool changing = scene.moved_between(o.id, k - 1, k);
+      if (changing && start < 0) start = k;
+      if (start >= 0 && (!changing || k == frames - 1)) {
+        const int end = changing ? k : k - 1;
+        if (scene.object_visible(o.id, start - 1) && end + kWithin < frames) {
+          out.push_back({o.id, start, end});
+        }
+        start = -1;
+      }
+    }
+  }
+  return out;
+}
+constexpr double kTol = 0.01;  // point_fate tolerance on exact surface points (m)
+
+// The surface point a map point stands for: where the ray through its feature in its first
+// keyframe, cast from that frame's true camera pose, first meets a surface. Exact, and
+// independent of the SLAM map's errors and of the trajectory alignment (a Sim3 fitted to a
+// camera path spanning less than a metre leaves a rotation error of the order of a degree,
+// i.e. several centimetres at the wall). NaN when the ray hits nothing.
+Eigen::Vector3d feature_surface_point(const SynthScene& scene, const CameraModel& cam, int ref,
+                                      const Eigen::Vector2d& px) {
+  const Eigen::Isometry3d& T = scene.T_world_cam.at(ref);
+  const Eigen::Vector3d ray((px.x() - cam.cx) / cam.fx, (px.y() - cam.cy) / cam.fy, 1.0);
+  const Eigen::Vector3d dir = T.linear() * ray;
   double lambda = 0;
-  if (scene.raycast(ref, o, dir, &lambda) == 0 || std::abs(lambda - 1.0) > 0.1) return false;
-  out = o + lambda * dir;
-  return true;
+  if (scene.raycast(ref, T.translation(), dir, &lambda) == 0) {
+    return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
+  return T.translation() + lambda * dir;
 }
 
 // Distance between a world point and the surface in front of it at `frame` (+inf: nothing).
@@ -153,7 +191,10 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   std::map<int64_t, int> frame_of_stamp;
   std::unordered_map<int64_t, Invalidation> inval;
   std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>> snapshot;  // id -> (ref, p)
-  std::unordered_map<int64_t, int> erased_at;  // snapshot id -> first frame it was gone
+  // Per change episode, the points valid just before it started (id -> (ref, p)).
+  const std::vector<Episode> episodes = change_episodes(seq.scene(), kFrames);
+  std::vector<std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>>> before(episodes.size());
+  std::unordered_map<int64_t, int> erased_at;  // watched id -> first frame it was gone
   std::vector<Eigen::Vector3d> est, gt;
   DynResult r;
   Frame frame;
@@ -161,6 +202,7 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
     if (src->read(frame, 1000) != SourceStatus::kOk) break;
     frame_of_stamp[frame.stamp_ns] = n;
     const TrackResult tr = tracker.track(frame);
+    if (verbose) std::printf("[frame] %d\n", n);
     while (mapper.step(0)) {
     }
     ++r.frames;
@@ -178,25 +220,47 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
     }
     log.clear();
     const Map& map = mapper.map();
-    auto ref_frame = [&](const MapPoint& p) {
-      const auto kf = map.keyframes.find(p.first_kf);
-      if (kf == map.keyframes.end()) return -1;
-      const auto it = frame_of_stamp.find(kf->second.stamp_ns);
-      return it == frame_of_stamp.end() ? -1 : it->second;
+    // (frame of the point's first keyframe, its true surface point); the oldest keyframe still
+    // observing it stands in for a culled first keyframe (as in core/map_updater.cpp).
+    auto truth = [&](const MapPoint& p) -> std::pair<int, Eigen::Vector3d> {
+      const Keyframe* best = nullptr;
+      int feat = -1;
+      for (const Observation& o : p.obs) {
+        const auto kf = map.keyframes.find(o.kf);
+        if (kf == map.keyframes.end()) continue;
+        if (best == nullptr || o.kf == p.first_kf || (best->id != p.first_kf && o.kf < best->id)) {
+          best = &kf->second;
+          feat = o.feat;
+        }
+      }
+      const Eigen::Vector3d nan =
+          Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+      if (best == nullptr) return {-1, nan};
+      const auto it = frame_of_stamp.find(best->stamp_ns);
+      if (it == frame_of_stamp.end()) return {-1, nan};
+      const Eigen::Vector2d px(best->features.un[feat].x, best->features.un[feat].y);
+      return {it->second, feature_surface_point(seq.scene(), cam, it->second, px)};
     };
     for (const auto& kv : map.points) {
       const MapPoint& p = kv.second;
       if (p.valid || inval.count(p.id)) continue;
-      inval[p.id] = Invalidation{n, ref_frame(p), p.p_world};
+      const auto t = truth(p);
+      inval[p.id] = Invalidation{n, t.first, p.p_world, t.second};
     }
-    if (n > kSnapshot) {
-      for (const auto& kv : snapshot) {
+    for (const auto& b : before) {
+      for (const auto& kv : b) {
         if (!erased_at.count(kv.first) && !map.points.count(kv.first)) erased_at[kv.first] = n;
       }
     }
     if (n == kSnapshot) {
       for (const auto& kv : map.points) {
-        if (kv.second.valid) snapshot[kv.first] = {ref_frame(kv.second), kv.second.p_world};
+        if (kv.second.valid) snapshot[kv.first] = truth(kv.second);
+      }
+    }
+    for (size_t e = 0; e < episodes.size(); ++e) {
+      if (n != episodes[e].start - 1) continue;
+      for (const auto& kv : map.points) {
+        if (kv.second.valid) before[e][kv.first] = truth(kv.second);
       }
     }
   }
@@ -236,7 +300,8 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
     auto& cause = r.by_cause[c == cause_of.end() ? "other" : to_string(c->second.cause)];
     ++cause.first;
     Eigen::Vector3d pw;
-    if (!surface_point(scene, iv.ref_frame, sim.apply(iv.p_slam), pw)) {
+    pw = iv.p_true;
+    if (!pw.allFinite()) {
       ++r.invalidated_off_surface;
       ++r.fp_off_surface;
       continue;
@@ -287,28 +352,58 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
       ++r.fp_visible;
     }
   }
-  for (const auto& kv : snapshot) {
-    const int ref = std::max(kv.second.first, 0);
-    Eigen::Vector3d pw;
-    if (!surface_point(scene, ref, sim.apply(kv.second.second), pw)) continue;
-    const auto iv = inval.find(kv.first);
-    const SynthPointFate f = scene.point_fate(pw, ref, kDeadline, kTol);
-    if (f.moved) {
-      ++r.moved;
-      r.moved_invalidated += iv != inval.end() && iv->second.frame <= kDeadline;
+  // Recall, per change episode: the points valid just before the object started to change
+  // that lay on it, removed within kWithin frames of the episode's end.
+  std::unordered_map<int64_t, int> counted;  // a point counts for its first episode only
+  for (size_t e = 0; e < episodes.size(); ++e) {
+    const Episode& ep = episodes[e];
+    const int deadline = ep.end + kWithin;
+    EpisodeRecall er_out;
+    er_out.object = scene.object(ep.object_id) ? scene.object(ep.object_id)->name : "?";
+    er_out.start = ep.start;
+    er_out.end = ep.end;
+    for (const auto& kv : before[e]) {
+      if (counted.count(kv.first)) continue;
+      const int ref = std::max(kv.second.first, 0);
+      Eigen::Vector3d pw;
+      pw = kv.second.second;
+      if (!pw.allFinite()) continue;
+      const SynthPointFate f = scene.point_fate(pw, ref, ep.end, kTol);
+      if (!f.moved || f.object_id != ep.object_id) continue;
+      counted[kv.first] = int(e);
+      const auto iv = inval.find(kv.first);
       const auto er = erased_at.find(kv.first);
-      r.moved_removed += (iv != inval.end() && iv->second.frame <= kDeadline) ||
-                         (er != erased_at.end() && er->second <= kDeadline);
-      if (verbose && (iv == inval.end() || iv->second.frame > kDeadline)) {
+      const bool inv = iv != inval.end() && iv->second.frame <= deadline;
+      const bool removed = inv || (er != erased_at.end() && er->second <= deadline);
+      ++r.moved;
+      r.moved_invalidated += inv;
+      r.moved_removed += removed;
+      ++er_out.moved;
+      er_out.invalidated += inv;
+      er_out.removed += removed;
+      if (verbose && !inv) {
         const auto it = mapper.map().points.find(kv.first);
         const MapPoint* mp = it == mapper.map().points.end() ? nullptr : &it->second;
-        std::printf("[miss] id %ld ref %d invalidated at %d, now %s obs %d\n", long(kv.first), ref,
+        int visible = 0;  // frames of the window in which its old place was in view
+        for (int k = ep.end + 1; k <= deadline; ++k) {
+          const SynthPointFate g = scene.point_fate(pw, ref, k, kTol);
+          visible += g.in_view && !g.occluded;
+        }
+        std::printf("[miss] %s visible %d id %ld ref %d invalidated at %d, now %s obs %d\n",
+                    er_out.object.c_str(), visible, long(kv.first), ref,
                     iv == inval.end() ? -1 : iv->second.frame,
                     mp == nullptr ? "erased" : (mp->valid ? "valid" : "invalid"),
                     mp == nullptr ? 0 : int(mp->obs.size()));
       }
-      continue;
     }
+    r.episodes.push_back(er_out);
+  }
+  for (const auto& kv : snapshot) {
+    const int ref = std::max(kv.second.first, 0);
+    Eigen::Vector3d pw;
+    pw = kv.second.second;
+    if (!pw.allFinite()) continue;
+    const auto iv = inval.find(kv.first);
     // Not moved by the end of the run: was it ever occluded while in view?
     if (scene.point_fate(pw, ref, kFrames - 1, kTol).moved) continue;
     bool occluded = false, covered = false;
@@ -358,6 +453,13 @@ void print(const char* name, const DynResult& r) {
       "[dynamic]   false positives: off-surface %d, occluded by a moving object %d, occluded by "
       "a static object %d, visible and unchanged %d, out of view %d\n",
       r.fp_off_surface, r.fp_occluded_moving, r.fp_occluded_static, r.fp_visible, r.fp_out_of_view);
+  for (const EpisodeRecall& e : r.episodes) {
+    std::printf(
+        "[dynamic]   episode %s frames %d-%d: %d points on it, invalidated within %d frames %d "
+        "(%.1f%%), removed %d (%.1f%%)\n",
+        e.object.c_str(), e.start, e.end, e.moved, kWithin, e.invalidated,
+        pct(e.invalidated, e.moved), e.removed, pct(e.removed, e.moved));
+  }
   for (const auto& [cause, n] : r.by_cause) {
     std::printf("[dynamic]   cause %s: %d invalidated, %d really moved\n", cause.c_str(), n.first,
                 n.second);
