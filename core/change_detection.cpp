@@ -27,6 +27,8 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "depth uncertainty (in bearing-error sigmas) the ray search covers");
   v.field("temporal_check", temporal_check,
           "require the new appearance to be static before a point is invalidated");
+  v.field("require_static_evidence", require_static_evidence,
+          "invalidate only when the temporal check finds a static surface at/behind the point");
   v.field("temporal_max_gap_s", temporal_max_gap_s, 0.0, 10.0,
           "oldest recent frame the temporal check may use (s)");
   v.field("temporal_depth_margin", temporal_depth_margin, 0.0, 0.9,
@@ -273,6 +275,8 @@ const char* to_string(PointDecision d) {
       return "keep:not-checked";
     case PointDecision::kInvalidStaticChange:
       return "invalid:static-change";
+    case PointDecision::kKeepUndecided:
+      return "keep:undecided";
   }
   return "unknown";
 }
@@ -294,6 +298,9 @@ PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen:
   if (neighbour_count <= 0) {
     return seen == NewSurface::kBehind ? PointDecision::kInvalidStaticChange
                                        : PointDecision::kKeepOccludedMoving;
+  }
+  if (p.temporal_check && p.require_static_evidence && seen != NewSurface::kBehind) {
+    return PointDecision::kKeepUndecided;
   }
   bool all_behind = true;
   for (int i = 0; i < neighbour_count; ++i) all_behind &= neighbours[i].depth_current >= depth_x;

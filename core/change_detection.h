@@ -56,12 +56,19 @@ struct ChangeDetectionParams {
   double ray_search_sigmas = 3.0;
   // What replaced X (see NewSurface): the current window at x' is compared with the previous
   // checked frame's window at X's projection (eq. (2), same tau: moving or static) and, when
-  // static, matched along x''s ray into the recent frame with the widest baseline (its depth:
+  // static, matched along x's ray into the recent frame with the widest baseline (its depth:
   // in front of X or not). Addition to Algorithm 1 in the spirit of the second paper's
   // optical-flow test, for the case the paper leaves open (nothing tracked near x'). Frames
   // older than temporal_max_gap_s are not used; temporal_depth_margin is the relative depth
   // below z_X that counts as "in front".
   bool temporal_check = true;
+  // With temporal_check: X is invalidated only when the check finds a static surface at or
+  // behind X (kBehind). false: where the check cannot decide (no baseline, flat or split
+  // window), the paper's Algorithm 1 decides from the tracked neighbours alone. Default true:
+  // on synth:rearrange it removes most false invalidations (windows straddling a static
+  // occluder's silhouette, where Alg. 1 sees only the tracked background) at a small recall
+  // cost (docs/slam.md, "Map updating").
+  bool require_static_evidence = true;
   double temporal_max_gap_s = 1.0;
   double temporal_depth_margin = 0.1;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
@@ -148,7 +155,7 @@ constexpr int kMaxAppearanceWindow = 31;
 constexpr double kMinRayDepthRatio = 0.05;  // ray search covers depth z/(1+r) .. z(1+r)
 constexpr double kMaxRayDepthRatio = 0.5;
 constexpr int kMaxRaySamples = 64;
-constexpr int kMaxDepthSamples = 96;  // temporal check: samples along x''s ray
+constexpr int kMaxDepthSamples = 48;  // temporal check: samples along x's ray
 constexpr double kMaxAppearanceGain = 4.0;
 constexpr double kMinAppearanceContrast = 4.0;
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
@@ -174,6 +181,7 @@ enum class PointDecision : uint8_t {
   kInvalidNoOcclusionHandling,  // ablation: D_c > tau_c invalidates directly
   kKeepNotChecked,              // window outside the image or no appearance available
   kInvalidStaticChange,         // phi(x') empty but the new appearance at x' is static
+  kKeepUndecided,               // require_static_evidence: no static surface found at/behind X
 };
 
 // What the current frame shows at x' where X looks changed (temporal_check): compared with
@@ -203,7 +211,8 @@ const char* to_string(PointDecision d);
 //  occluder, the case Alg. 1 resolves with r2 when the occluder is tracked); kBehind turns
 //  "phi(x') empty: occluded by a moving object" into kInvalidStaticChange (what replaced X
 //  does not move and is not in front of X: X's surface changed, and nothing trackable, e.g. a
-//  plain floor, took its place); kUnknown is the paper's Algorithm 1 unchanged.
+//  plain floor, took its place); kUnknown is the paper's Algorithm 1 unchanged, or, with
+//  require_static_evidence, keeps V(X) = 1 (kKeepUndecided) as every verdict but kBehind does.
 PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen::Vector3d& n_x,
                                     const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
                                     const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,

@@ -278,7 +278,7 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
                             params_.window, params_.search_d, params_.normalise_appearance);
   if (!std::isfinite(d_t)) return NewSurface::kUnknown;
   if (d_t > params_.tau_c) return NewSurface::kMoving;
-  // 2. Static: where is it? Match the current window at x' along x''s ray into the recent
+  // 2. Static: where is it? Match the current window at x' along x's ray into the recent
   // frame with the widest baseline, over inverse depths from far behind X (1/(4 z_X)) to well
   // in front (1/(0.25 z_X)); the best match's depth against z_X decides.
   const Eigen::Vector3d c_cur = T_cam_world.centre();
@@ -294,37 +294,43 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   }
   if (wide == nullptr) return NewSurface::kUnknown;
   const Eigen::Vector3d ray = T_cam_world.R.transpose() * K_.unproject(x_prime.x(), x_prime.y());
+  bool ok = true;
   auto pixel_at = [&](double z, double* z_other) {
     const Eigen::Vector3d q = wide->T_cam_world * (c_cur + ray * z);
     *z_other = q.z();
-    return K_.project(q);
+    ok &= q.z() > 1e-9;
+    return ok ? K_.project(q) : Eigen::Vector2d(0, 0);
   };
-  // The depth resolution: X's depth and the "in front" boundary must project at least 2 px
-  // apart in the wide frame, or the baseline cannot tell them apart.
   const double z_front = depth * (1.0 - params_.temporal_depth_margin);
-  double zo0 = 0, zo1 = 0;
-  const Eigen::Vector2d px_x = pixel_at(depth, &zo0), px_front = pixel_at(z_front, &zo1);
-  if (zo0 <= 1e-9 || zo1 <= 1e-9 || (px_x - px_front).norm() < 2.0) return NewSurface::kUnknown;
+  double zo = 0;
+  const Eigen::Vector2d px_x = pixel_at(depth, &zo), px_front = pixel_at(z_front, &zo);
   const double inv_far = 1.0 / (4.0 * depth), inv_near = 1.0 / (0.25 * depth);
-  double za = 0, zb = 0;
-  const double len = (pixel_at(1.0 / inv_far, &za) - pixel_at(1.0 / inv_near, &zb)).norm();
-  if (za <= 1e-9 || zb <= 1e-9) return NewSurface::kUnknown;
-  const int steps = std::clamp(static_cast<int>(std::ceil(len)), 2, kMaxDepthSamples);
+  const double len = (pixel_at(1.0 / inv_far, &zo) - pixel_at(1.0 / inv_near, &zo)).norm();
+  if (!ok || len < 3.0) return NewSurface::kUnknown;  // no baseline to speak of
+  // A sample every 2 px: eq. (2)'s local search (d = 1) covers the pixel between.
+  const int steps = std::clamp(static_cast<int>(std::ceil(len / 2.0)), 2, kMaxDepthSamples);
   double best = std::numeric_limits<double>::infinity(), best_z = 0;
+  Eigen::Vector2d best_px(0, 0);
   for (int s = 0; s <= steps; ++s) {
     const double z = 1.0 / (inv_far + (inv_near - inv_far) * s / steps);
     double zw = 0;
     const Eigen::Vector2d px = pixel_at(z, &zw);
-    if (zw <= 1e-9) continue;
+    if (!ok) return NewSurface::kUnknown;
     const double d = appearance_difference(image, x_prime, wide->image, px, z / zw, params_.window,
                                            1, params_.normalise_appearance);
     if (d < best) {
       best = d;
       best_z = z;
+      best_px = px;
     }
   }
   if (!(best <= params_.tau_c)) return NewSurface::kUnknown;  // no consistent static match
-  return best_z < z_front ? NewSurface::kInFront : NewSurface::kBehind;
+  // In front: the match lies clearly (2 px) on the near side of X's depth. At or behind: only
+  // when the baseline separates X's depth from the "in front" boundary by 2 px.
+  if (best_z < z_front) {
+    return (best_px - px_x).norm() >= 2.0 ? NewSurface::kInFront : NewSurface::kUnknown;
+  }
+  return (px_x - px_front).norm() >= 2.0 ? NewSurface::kBehind : NewSurface::kUnknown;
 }
 
 MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,

@@ -75,17 +75,17 @@ struct UpdateFrame {
 };
 
 struct MapUpdateStats {
-  int keyframes_selected = 0;     // closest keyframes found
-  int keyframes_triggered = 0;    // of those, histogram difference above the threshold
-  int points_checked = 0;         // points run through Algorithm 1
-  int points_invalidated = 0;     // V(X) set to 0 in this call
-  int keyframes_invalidated = 0;  // keyframes newly marked invalid in this call
-  int decisions[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // per PointDecision value
-  int points_not_established = 0;                  // skipped: fewer than min_observations
-  int points_inconsistent = 0;  // skipped: X does not reproject onto the keyframe's feature
-  int counter_discards = 0;     // of points_invalidated: by the counters
-  int flow_moved = 0;           // tracked points on flowing regions
-  bool flow_computed = false;   // camera stationary: flow ran this frame
+  int keyframes_selected = 0;      // closest keyframes found
+  int keyframes_triggered = 0;     // of those, histogram difference above the threshold
+  int points_checked = 0;          // points run through Algorithm 1
+  int points_invalidated = 0;      // V(X) set to 0 in this call
+  int keyframes_invalidated = 0;   // keyframes newly marked invalid in this call
+  int decisions[10] = {};          // per PointDecision value
+  int points_not_established = 0;  // skipped: fewer than min_observations
+  int points_inconsistent = 0;     // skipped: X does not reproject onto the keyframe's feature
+  int counter_discards = 0;        // of points_invalidated: by the counters
+  int flow_moved = 0;              // tracked points on flowing regions
+  bool flow_computed = false;      // camera stationary: flow ran this frame
 };
 
 // Why a point was invalidated (tests and diagnostics): an Algorithm 1 decision or a counter.

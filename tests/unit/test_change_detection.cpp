@@ -100,8 +100,10 @@ TEST(AppearanceDifference, OutsideTheImageIsNotChecked) {
   EXPECT_TRUE(std::isinf(appearance_difference(a, {50, 50}, a, {97, 50}, 1.0, 11, 2)));
 }
 
+// The paper's Algorithm 1 (temporal_check off: no evidence about what replaced X).
 class Algorithm1 : public ::testing::Test {
  protected:
+  Algorithm1() { p.temporal_check = false; }
   ChangeDetectionParams p;
   const Eigen::Vector3d n{0, 0, -1};
   const Eigen::Vector2d x_p{100, 100};
@@ -152,6 +154,40 @@ TEST_F(Algorithm1, WithoutOcclusionHandlingAnyAppearanceChangeInvalidates) {
             PointDecision::kInvalidNoOcclusionHandling);
   EXPECT_TRUE(is_invalidation(PointDecision::kInvalidNoOcclusionHandling));
   EXPECT_FALSE(is_invalidation(PointDecision::kKeepOccludedMoving));
+}
+
+// The temporal check's evidence (NewSurface) on top of Algorithm 1, default parameters.
+TEST_F(Algorithm1, MovingNewAppearanceKeepsWhateverTheNeighboursSay) {
+  p = ChangeDetectionParams();
+  NeighbourPoint ys[2] = {neighbour(4.0, {300, 300}), neighbour(6.0, {10, 10})};
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2, NewSurface::kMoving),
+            PointDecision::kKeepOccludedMoving);
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2, NewSurface::kInFront),
+            PointDecision::kKeepOccludedStatic);
+}
+
+TEST_F(Algorithm1, StaticSurfaceBehindWithNothingTrackedInvalidates) {
+  p = ChangeDetectionParams();
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, nullptr, 0, NewSurface::kBehind),
+            PointDecision::kInvalidStaticChange);
+  EXPECT_TRUE(is_invalidation(PointDecision::kInvalidStaticChange));
+  // Without that evidence the paper's verdict stands: a moving occluder.
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, nullptr, 0, NewSurface::kUnknown),
+            PointDecision::kKeepOccludedMoving);
+}
+
+TEST_F(Algorithm1, RequireStaticEvidenceGatesTheNeighbourVerdicts) {
+  p = ChangeDetectionParams();
+  ASSERT_TRUE(p.require_static_evidence);
+  NeighbourPoint ys[2] = {neighbour(4.0, {300, 300}), neighbour(6.0, {10, 10})};
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2, NewSurface::kUnknown),
+            PointDecision::kKeepUndecided);
+  EXPECT_FALSE(is_invalidation(PointDecision::kKeepUndecided));
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2, NewSurface::kBehind),
+            PointDecision::kInvalidNothingInFront);
+  p.require_static_evidence = false;  // Alg. 1 decides where the check cannot
+  EXPECT_EQ(update_point_validity(p, n, n, changed, depth_x, x_p, ys, 2, NewSurface::kUnknown),
+            PointDecision::kInvalidNothingInFront);
 }
 
 TEST(KeyframeValidity, InvalidAboveNinetyPercent) {
