@@ -148,7 +148,8 @@ inline float sample_bilinear(const cv::Mat& img, double x, double y, int c) {
 
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                             double scale, int window, int search_d, bool normalise) {
+                             double scale, int window, int search_d, bool normalise,
+                             double accept) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   if (keyframe_image.empty() || current_image.empty() ||
       keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
@@ -201,6 +202,10 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
       k_dev[c] += std::fabs(kv[c][i]);
     }
   }
+  // The score's unit: per pixel and channel (plain) or the keyframe window's contrast.
+  double k_dev_all = 0;
+  for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
+  if (normalise && k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture
   const double off_x = kx - x.x(), off_y = ky - x.y();  // sub-pixel part of x
   const double reach_g = scale * (h + D) + 1;
   if (x_prime.x() - reach_g < 0 || x_prime.y() - reach_g < 0 ||
@@ -216,43 +221,47 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
         grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
     }
   }
+  const double unit = normalise ? k_dev_all : double(n) * ch;
+  const double accept_sum = accept * unit;
   double best = kInf;
-  for (int dy = 0; dy <= 2 * D; ++dy) {
-    for (int dx = 0; dx <= 2 * D; ++dx) {
-      double sum = 0;
-      for (int c = 0; c < ch && sum < best; ++c) {
-        const float* g0 = grid[c] + dy * gw + dx;
-        double mean = 0, g = 1.0;
-        if (normalise) {
-          for (int wy = 0; wy < w; ++wy) {
-            for (int wx = 0; wx < w; ++wx) mean += g0[wy * gw + wx];
+  // Shifts ring by ring from the centre (r = max(|dx|, |dy|)), so `accept` stops early.
+  for (int r = 0; r <= D; ++r) {
+    for (int ddy = -r; ddy <= r; ++ddy) {
+      for (int ddx = -r; ddx <= r; ++ddx) {
+        if (std::max(std::abs(ddx), std::abs(ddy)) != r) continue;
+        const int dy = ddy + D, dx = ddx + D;
+        double sum = 0;
+        for (int c = 0; c < ch && sum < best; ++c) {
+          const float* g0 = grid[c] + dy * gw + dx;
+          double mean = 0, g = 1.0;
+          if (normalise) {
+            for (int wy = 0; wy < w; ++wy) {
+              for (int wx = 0; wx < w; ++wx) mean += g0[wy * gw + wx];
+            }
+            mean /= n;
+            double dev = 0;
+            for (int wy = 0; wy < w; ++wy) {
+              for (int wx = 0; wx < w; ++wx) dev += std::fabs(g0[wy * gw + wx] - mean);
+            }
+            // Gain that maps the current window's contrast onto the keyframe's, bounded: a
+            // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
+            g = dev > 1e-6 ? k_dev[c] / dev : kMaxAppearanceGain;
+            g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
           }
-          mean /= n;
-          double dev = 0;
+          const float* kc = kv[c];
           for (int wy = 0; wy < w; ++wy) {
-            for (int wx = 0; wx < w; ++wx) dev += std::fabs(g0[wy * gw + wx] - mean);
+            const float* gr = g0 + wy * gw;
+            const float* kr = kc + wy * w;
+            for (int wx = 0; wx < w; ++wx) sum += std::fabs(kr[wx] - g * (gr[wx] - mean));
           }
-          // Gain that maps the current window's contrast onto the keyframe's, bounded: a
-          // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
-          g = dev > 1e-6 ? k_dev[c] / dev : kMaxAppearanceGain;
-          g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
         }
-        const float* kc = kv[c];
-        for (int wy = 0; wy < w; ++wy) {
-          const float* gr = g0 + wy * gw;
-          const float* kr = kc + wy * w;
-          for (int wx = 0; wx < w; ++wx) sum += std::fabs(kr[wx] - g * (gr[wx] - mean));
-        }
+        best = std::min(best, sum);
+        if (best <= accept_sum) return best / unit;
       }
-      best = std::min(best, sum);
     }
   }
-  if (!normalise) return best / (double(n) * ch);
-  // Relative residual: the keyframe window's own contrast is the unit (see the header).
-  double k_dev_all = 0;
-  for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
-  if (k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture to compare
-  return best / k_dev_all;
+  // Relative residual (normalise): the keyframe window's own contrast is the unit.
+  return best / unit;
 }
 
 const char* to_string(PointDecision d) {

@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <opencv2/core.hpp>
 
 #include "core/params.h"
@@ -158,9 +159,14 @@ constexpr int kMaxRaySamples = 64;
 constexpr int kMaxDepthSamples = 48;  // temporal check: samples along x's ray
 constexpr double kMaxAppearanceGain = 4.0;
 constexpr double kMinAppearanceContrast = 4.0;
+//
+// accept (optional): the shifts d are tried from the centre outwards and the first one whose
+// score is <= accept is returned at once (the minimum is not needed to know that the window
+// is unchanged); the default (-inf) computes the minimum over all shifts.
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                             double scale, int window, int search_d, bool normalise = false);
+                             double scale, int window, int search_d, bool normalise = false,
+                             double accept = -std::numeric_limits<double>::infinity());
 
 // A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
 // current camera, and X_y's projection into the keyframe where X first appeared.

@@ -242,7 +242,7 @@ double MapUpdater::ray_difference(Map& map, const MapPoint& p, const Keyframe& k
     if (pc.z() <= 1e-9) continue;
     const double d = appearance_difference(
         kf.image, Eigen::Vector2d(kp.x, kp.y), image, K_.project(pc), z / pc.z(), params_.window,
-        std::min(params_.search_d, 1), params_.normalise_appearance);
+        std::min(params_.search_d, 1), params_.normalise_appearance, params_.tau_c);
     best = std::min(best, d);
     if (best <= params_.tau_c) break;  // found: X's surface is still there
   }
@@ -273,9 +273,9 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   if (!usable(last)) return NewSurface::kUnknown;
   const Eigen::Vector3d pl = last.T_cam_world * p_world;
   if (pl.z() <= 1e-9) return NewSurface::kUnknown;
-  const double d_t =
-      appearance_difference(last.image, K_.project(pl), image, x_prime, pl.z() / depth,
-                            params_.window, params_.search_d, params_.normalise_appearance);
+  const double d_t = appearance_difference(last.image, K_.project(pl), image, x_prime,
+                                           pl.z() / depth, params_.window, params_.search_d,
+                                           params_.normalise_appearance, params_.tau_c);
   if (!std::isfinite(d_t)) return NewSurface::kUnknown;
   if (d_t > params_.tau_c) return NewSurface::kMoving;
   // 2. Static: where is it? Match the current window at x' along x's ray into the recent
@@ -479,7 +479,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
         const cv::Point2f& kp = kf->features.kps[i].pt;
         c.d_c = appearance_difference(kf->image, Eigen::Vector2d(kp.x, kp.y), image, xp,
                                       pk.z() / pc.z(), params_.window, params_.search_d,
-                                      params_.normalise_appearance);
+                                      params_.normalise_appearance, params_.tau_c);
       }
       candidates_.push_back(c);
     }

@@ -106,8 +106,20 @@ struct InvalidationRecord {
   int keyframe = -1;  // keyframe whose point list contained X (Alg. 1 causes)
 };
 
+// One Algorithm 1 verdict (diagnostics: MapUpdater::set_check_log).
+struct CheckRecord {
+  int64_t id = -1;
+  PointDecision decision = PointDecision::kKeepNotChecked;
+  NewSurface seen = NewSurface::kUnknown;
+  float d_c = 0.f;     // eq. (2) after the ray search
+  int neighbours = 0;  // |phi(x')|
+};
+
 class MapUpdater {
  public:
+  // Diagnostics: every Algorithm 1 verdict is appended to `log` (nullptr: off, the default;
+  // appending allocates, so tests and tools only).
+  void set_check_log(std::vector<CheckRecord>* log) { check_log_ = log; }
   MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K);
 
   // One frame: `image` is the frame (same channel count as the keyframe images), T_cam_world
@@ -197,6 +209,7 @@ class MapUpdater {
   std::vector<float> fx_, fy_;
   std::vector<uint8_t> keep_;
   std::vector<InvalidationRecord>* records_ = nullptr;  // of the update() call in progress
+  std::vector<CheckRecord>* check_log_ = nullptr;
 };
 
 }  // namespace rdslam

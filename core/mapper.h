@@ -78,6 +78,10 @@ class Mapper {
   void set_change_detection(const ChangeDetectionParams& p);
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
+  // Diagnostics: every Algorithm 1 verdict (core/map_updater.h CheckRecord); tests only.
+  void set_check_log(std::vector<CheckRecord>* log) {
+    if (updater_) updater_->set_check_log(log);
+  }
 
  private:
   void process(const KeyframeCandidate& c);

@@ -184,9 +184,11 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   mapper.set_change_detection(params.dynamic);
   std::vector<InvalidationRecord> log;
   mapper.set_invalidation_log(&log);
+  const bool verbose = std::getenv("RDSLAM_TEST_VERBOSE") != nullptr;
+  std::vector<CheckRecord> checks;
+  if (verbose) mapper.set_check_log(&checks);
   std::unordered_map<int64_t, InvalidationRecord> cause_of;
   std::unordered_map<int, Eigen::Isometry3d> slam_pose;  // frame -> SLAM T_world_cam
-  const bool verbose = std::getenv("RDSLAM_TEST_VERBOSE") != nullptr;
 
   std::map<int64_t, int> frame_of_stamp;
   std::unordered_map<int64_t, Invalidation> inval;
@@ -202,7 +204,6 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
     if (src->read(frame, 1000) != SourceStatus::kOk) break;
     frame_of_stamp[frame.stamp_ns] = n;
     const TrackResult tr = tracker.track(frame);
-    if (verbose) std::printf("[frame] %d\n", n);
     while (mapper.step(0)) {
     }
     ++r.frames;
@@ -212,6 +213,11 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
       gt.push_back(seq.T_world_cam(n).translation());
     }
     for (const InvalidationRecord& rec : log) cause_of.emplace(rec.id, rec);
+    for (const CheckRecord& c : checks) {
+      std::printf("[check] frame %d id %ld %s seen %d d_c %.2f nn %d\n", n, long(c.id),
+                  to_string(c.decision), int(c.seen), c.d_c, c.neighbours);
+    }
+    checks.clear();
     if (test::is_tracked(tr.state)) {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.linear() = tr.q_world_cam.toRotationMatrix();
