@@ -194,11 +194,14 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
       }
     }
   }
+  // Bias and gain shared by the channels (white light, exposure): the window's mean colour
+  // balance is part of its appearance.
+  const double k_mean_all = (k_mean[0] + (ch > 1 ? k_mean[1] + k_mean[2] : 0.0)) / (double(n) * ch);
   for (int c = 0; c < ch; ++c) {
     k_mean[c] /= n;
     if (!normalise) continue;
     for (int i = 0; i < n; ++i) {
-      kv[c][i] -= float(k_mean[c]);
+      kv[c][i] -= float(k_mean_all);
       k_dev[c] += std::fabs(kv[c][i]);
     }
   }
@@ -206,7 +209,7 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   double k_dev_all = 0;
   for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
   if (normalise && k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture
-  const double off_x = kx - x.x(), off_y = ky - x.y();  // sub-pixel part of x
+  const double off_x = kx - x.x(), off_y = ky - x.y();                        // sub-pixel part of x
   const double reach_g = scale * (h + D) + 1;
   if (x_prime.x() - reach_g < 0 || x_prime.y() - reach_g < 0 ||
       x_prime.x() + reach_g >= current_image.cols - 1 ||
@@ -231,23 +234,29 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
         if (std::max(std::abs(ddx), std::abs(ddy)) != r) continue;
         const int dy = ddy + D, dx = ddx + D;
         double sum = 0;
-        for (int c = 0; c < ch && sum < best; ++c) {
-          const float* g0 = grid[c] + dy * gw + dx;
-          double mean = 0, g = 1.0;
-          if (normalise) {
+        double mean = 0, g = 1.0;
+        if (normalise) {
+          for (int c = 0; c < ch; ++c) {
+            const float* g0 = grid[c] + dy * gw + dx;
             for (int wy = 0; wy < w; ++wy) {
               for (int wx = 0; wx < w; ++wx) mean += g0[wy * gw + wx];
             }
-            mean /= n;
-            double dev = 0;
+          }
+          mean /= double(n) * ch;
+          double dev = 0;
+          for (int c = 0; c < ch; ++c) {
+            const float* g0 = grid[c] + dy * gw + dx;
             for (int wy = 0; wy < w; ++wy) {
               for (int wx = 0; wx < w; ++wx) dev += std::fabs(g0[wy * gw + wx] - mean);
             }
-            // Gain that maps the current window's contrast onto the keyframe's, bounded: a
-            // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
-            g = dev > 1e-6 ? k_dev[c] / dev : kMaxAppearanceGain;
-            g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
           }
+          // Gain that maps the current window's contrast onto the keyframe's, bounded: a
+          // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
+          g = dev > 1e-6 ? k_dev_all / dev : kMaxAppearanceGain;
+          g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
+        }
+        for (int c = 0; c < ch && sum < best; ++c) {
+          const float* g0 = grid[c] + dy * gw + dx;
           const float* kc = kv[c];
           for (int wy = 0; wy < w; ++wy) {
             const float* gr = g0 + wy * gw;
