@@ -11,8 +11,12 @@
 //  2. gather the checked keyframes' valid points that are not tracked in this frame, project
 //     into the view, are observed by >= `min_observations` keyframes and reproject onto the
 //     keyframe's feature (chi2 95%); eq. (2) against each such keyframe passing the view test;
-//  3. run Algorithm 1 once per point on its best reference (smallest D_c); a change verdict
-//     must repeat in `confirm_checks` consecutive checks before V(X) = 0;
+//  3. run Algorithm 1 once per point on its best reference (smallest D_c); before a point is
+//     called changed, eq. (2) is also searched along the reference keyframe's ray over the
+//     point's depth uncertainty (`ray_search`), and the recent checked frames tell what
+//     replaced it (`temporal_check`, NewSurface: moving, static in front, static at/behind);
+//     with `require_static_evidence` only "static at/behind" lets a verdict invalidate; a
+//     change verdict must repeat in `confirm_checks` consecutive checks before V(X) = 0;
 //  4. the second paper's counters (`landmark_counters`): a tracked point is "still" (counts
 //     reset), a PARSAC-rejected point (or, with `flow_rejection` and a stationary camera, a
 //     tracked point on dense optical flow) is "moved", Alg. 1's "occluded by an untracked,
@@ -26,7 +30,8 @@
 //
 // Deviations from the paper (argued where the parameters are declared, core/change_detection.h,
 // and in docs/slam.md "Map updating"): histogram trigger default 0, normalised eq. (2),
-// established points only, best reference per point, confirmation of change verdicts, the
+// established points only, best reference per point, ray search, the temporal check and the
+// evidence it supplies to Alg. 1, confirmation of change verdicts, the
 // miss counter restricted to Alg. 1's undecidable case (a plain "not matched" count would
 // discard every point occluded for a few frames, against Alg. 1's purpose).
 //
@@ -41,8 +46,9 @@
 // tau_c_relative (the threshold of the normalised score).
 //
 // Ownership: the caller (the mapper) owns the Map and passes it in; the updater owns only its
-// scratch buffers, the per-keyframe histogram cache, the confirmation counts and the previous
-// observation's grey image (flow). Threads: one thread (the mapper's). Allocation: buffers
+// scratch buffers, the per-keyframe histogram cache, the confirmation counts, copies of the
+// last kHistory checked frames (temporal check) and the previous observation's grey image
+// (flow). Threads: one thread (the mapper's). Allocation: buffers
 // grow during warm-up and are reused; the histogram cache allocates once per new keyframe.
 #pragma once
 
