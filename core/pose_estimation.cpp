@@ -6,40 +6,13 @@
 namespace rdslam {
 
 namespace {
-constexpr double kChi2 = 5.991;        // chi-square 2 DoF, 95%
-constexpr double kChi2Prior = 12.592;  // chi-square 6 DoF, 95%
-
-// Rotation vector of R (inverse of exp_so3), for small and moderate angles.
-Eigen::Vector3d log_so3(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
+constexpr double kChi2 = 5.991;  // chi-square 2 DoF, 95%
 }
-
-// Adds the motion prior's term to the normal equations of the current pose T.
-void add_prior(const PosePrior& prior, const Pose& T, Eigen::Matrix<double, 6, 6>& H,
-               Eigen::Matrix<double, 6, 1>& g) {
-  // T = exp(xi) T_pred with xi = (w, v): R = exp(w) R_pred, t = exp(w) t_pred + v.
-  const Eigen::Matrix3d dR = T.R * prior.T_pred.R.transpose();
-  Eigen::Matrix<double, 6, 1> xi;
-  xi.head<3>() = log_so3(dR);
-  xi.tail<3>() = T.t - dR * prior.T_pred.t;
-  Eigen::Matrix<double, 6, 1> info = Eigen::Matrix<double, 6, 1>::Zero();
-  if (prior.sigma_rot > 0) info.head<3>().setConstant(1.0 / (prior.sigma_rot * prior.sigma_rot));
-  if (prior.sigma_trans > 0) {
-    info.tail<3>().setConstant(1.0 / (prior.sigma_trans * prior.sigma_trans));
-  }
-  const double chi = xi.cwiseProduct(info).dot(xi);
-  const double w = chi > kChi2Prior ? std::sqrt(kChi2Prior / chi) : 1.0;
-  // d xi / d(left update) is the identity to first order.
-  H.diagonal() += w * info;
-  g += w * info.cwiseProduct(xi);
-}
-}  // namespace
 
 PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n, Pose& T,
-                            uint8_t* inlier, int rounds, int iterations, bool keep_initial_inliers,
-                            const PosePrior* prior, const float* weight) {
+                            uint8_t* inlier, int rounds, int iterations,
+                            bool keep_initial_inliers) {
   PoseRefineStats st;
   if (n <= 0) return st;
   if (!keep_initial_inliers) {
@@ -60,7 +33,7 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
         const Eigen::Vector2d e = K.project(pc) - obs[i];
         const double inv_s = 1.0 / sigma_px[i];
         const double chi = e.squaredNorm() * inv_s * inv_s;
-        double w = inv_s * inv_s * (weight ? double(weight[i]) : 1.0);
+        double w = inv_s * inv_s;
         if (robust && chi > kChi2) w *= huber / std::sqrt(chi);
         Eigen::Matrix<double, 2, 3> Jp;
         Jp << K.fx * iz, 0, -K.fx * pc.x() * iz * iz, 0, K.fy * iz, -K.fy * pc.y() * iz * iz;
@@ -72,7 +45,6 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
         ++used;
       }
       if (used < 4) break;
-      if (prior) add_prior(*prior, T, H, g);
       const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-g);
       if (!dx.allFinite()) break;
       const Eigen::Matrix3d dR = exp_so3(dx.head<3>());
@@ -113,7 +85,7 @@ PoseEstimator::PoseEstimator(const ParsacParams& params, const CameraModel& came
 
 int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs,
                             const float* sigma_px, int n, Pose& T, uint8_t* inlier,
-                            const Pose* guess, const PosePrior* prior, const float* weight) {
+                            const Pose* guess) {
   if (n < 6) return 0;
   n = std::min(n, max_n_);
   Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
@@ -130,7 +102,7 @@ int PoseEstimator::estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2
   // robust estimator's inliers. Starting eq. (1) from all correspondences instead would let
   // the rejected ones (e.g. a rigidly moving object, Figure 8) pull the pose back through
   // the robust kernel before the first re-classification.
-  return refine_pose(K_, p_world, obs, sigma_px, n, T, inlier, 4, 10, true, prior, weight).inliers;
+  return refine_pose(K_, p_world, obs, sigma_px, n, T, inlier, 4, 10, true).inliers;
 }
 
 }  // namespace rdslam

@@ -19,19 +19,6 @@
 
 namespace rdslam {
 
-// Constant-velocity motion prior for eq. (1) (not in the paper): a Gaussian on the pose's
-// deviation from the motion model's prediction, in the refinement's left-perturbation
-// coordinates (T = exp(xi) T_pred, xi = (rotation, translation)). Added to eq. (1)'s normal
-// equations it only matters along directions the image constrains weakly (e.g. a far,
-// low-contrast background, where a sideways translation and a rotation look alike): along
-// well-constrained directions hundreds of reprojection errors outweigh it. A Huber kernel
-// (chi-square 6 DoF, 95%) caps its pull when the camera really did change its motion.
-struct PosePrior {
-  Pose T_pred;               // predicted T_cam_world
-  double sigma_rot = 0.0;    // rad per axis; <= 0: no rotation prior
-  double sigma_trans = 0.0;  // map units per axis; <= 0: no translation prior
-};
-
 struct PoseRefineStats {
   int inliers = 0;
   double rms_px = 0.0;  // over inliers
@@ -43,24 +30,20 @@ struct PoseRefineStats {
 // outliers are excluded from the next round. With `keep_initial_inliers`, the first round
 // uses only the observations already marked 1 in `inlier` (a robust estimator's consensus
 // set), so observations it rejected cannot pull the pose before they are re-classified.
-// `prior` (optional) adds the motion prior above. `weight` (optional, n values) scales each
-// observation's term in the sum (not its inlier gate). Does not allocate.
+// Does not allocate.
 PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n,
                             Pose& T_cam_world, uint8_t* inlier, int rounds = 4, int iterations = 10,
-                            bool keep_initial_inliers = false, const PosePrior* prior = nullptr,
-                            const float* weight = nullptr);
+                            bool keep_initial_inliers = false);
 
 class PoseEstimator {
  public:
   PoseEstimator(const ParsacParams& params, const CameraModel& camera, int max_correspondences);
   // Robust pose (minimal samples, then eq. (1)). `guess` (optional) is the motion-model
-  // prediction. `prior` (optional) is used by the final eq. (1) only, never by the robust
-  // estimator's hypotheses. Returns the inlier count (0 on failure). Does not allocate
-  // (parsac, arsac, ransac, lo-ransac).
+  // prediction. Returns the inlier count (0 on failure). Does not allocate (parsac, arsac,
+  // ransac, lo-ransac).
   int estimate(const Eigen::Vector3d* p_world, const Eigen::Vector2d* obs, const float* sigma_px,
-               int n, Pose& T_cam_world, uint8_t* inlier, const Pose* guess = nullptr,
-               const PosePrior* prior = nullptr, const float* weight = nullptr);
+               int n, Pose& T_cam_world, uint8_t* inlier, const Pose* guess = nullptr);
   void reset_prior() { robust_.reset_prior(); }
 
  private:

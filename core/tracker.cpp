@@ -26,16 +26,6 @@ void TrackerParams::visit(ParamVisitor& v) {
           "lost this long with <= 2 keyframes: re-initialize");
   v.field("robust_per_frame", robust_per_frame,
           "robust pose (parsac.method) on every frame before the eq. (1) refinement");
-  v.field(
-      "motion_prior_accel", motion_prior_accel, 0.0, 1000.0,
-      "constant-velocity prior in eq. (1): linear acceleration sigma, scene depths/s^2 (0 off)");
-  v.field("motion_prior_angular_accel", motion_prior_angular_accel, 0.0, 10000.0,
-          "constant-velocity prior in eq. (1): angular acceleration sigma, rad/s^2 (0 off)");
-  v.field(
-      "coherent_motion_chi2", coherent_motion_chi2, 0.0, 1000.0,
-      "drop bins whose inliers are displaced coherently (chi-square of the mean residual; 0 off)");
-  v.field("bin_balanced_refine", bin_balanced_refine,
-          "eq. (1) weights each observation by 1 / (observations in its PARSAC bin)");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -73,14 +63,6 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   corr_feat_.resize(cap);
   corr_inl_.resize(cap);
   reloc_pairs_.resize(2 * cap);
-  depth_scratch_.resize(cap);
-  bins_x_ = parsac.bins_x;
-  bins_y_ = parsac.bins_y;
-  bin_sum_.assign(static_cast<size_t>(bins_x_ * bins_y_), Eigen::Vector2d::Zero());
-  bin_count_.assign(bin_sum_.size(), 0);
-  bin_flag_.assign(bin_sum_.size(), 0);
-  corr_bin_.assign(cap, 0);
-  corr_w_.assign(cap, 1.f);
   row_stamp_.assign(static_cast<size_t>(max_points) + 4096, -1);
   row_rejected_.assign(row_stamp_.size(), -1);
   kf_votes_.reserve(4096);
@@ -212,8 +194,7 @@ int Tracker::optimise(Pose& T) {
   }
   if (n < 6) return 0;
   const PoseRefineStats st =
-      refine_pose(K_, corr_p_.data(), corr_x_.data(), corr_s_.data(), n, T, corr_inl_.data(), 4, 10,
-                  false, prior_, balance_weights(n));
+      refine_pose(K_, corr_p_.data(), corr_x_.data(), corr_s_.data(), n, T, corr_inl_.data());
   // Outliers do not propagate to the next frame.
   for (int k = 0; k < n; ++k) {
     if (corr_inl_[k]) continue;
@@ -224,53 +205,6 @@ int Tracker::optimise(Pose& T) {
     cur_.best_dist[j] = 1e30f;
   }
   return st.inliers;
-}
-
-int Tracker::bin_of(float u, float v) const {
-  int bx = static_cast<int>(u * bins_x_ / cur_.f.width);
-  int by = static_cast<int>(v * bins_y_ / cur_.f.height);
-  bx = std::min(bins_x_ - 1, std::max(0, bx));
-  by = std::min(bins_y_ - 1, std::max(0, by));
-  return by * bins_x_ + bx;
-}
-
-const float* Tracker::balance_weights(int n) {
-  if (!params_.bin_balanced_refine || n <= 0) return nullptr;
-  std::fill(bin_count_.begin(), bin_count_.end(), 0);
-  for (int k = 0; k < n; ++k) {
-    corr_bin_[k] = bin_of(float(corr_x_[k].x()), float(corr_x_[k].y()));
-    ++bin_count_[corr_bin_[k]];
-  }
-  int occupied = 0;
-  for (int c : bin_count_) occupied += c > 0;
-  // w = 1 / n_bin, scaled so that the weights sum to n (mean 1): sum_k 1/n_bin(k) = occupied.
-  const double scale = double(n) / std::max(1, occupied);
-  for (int k = 0; k < n; ++k) corr_w_[k] = static_cast<float>(scale / bin_count_[corr_bin_[k]]);
-  return corr_w_.data();
-}
-
-void Tracker::make_prior(const Pose& Tpred, int64_t stamp_ns) {
-  prior_ = nullptr;
-  if (!velocity_valid_ || !have_last_) return;
-  const double dt = 1e-9 * static_cast<double>(stamp_ns - last_stamp_ns_);
-  if (!(dt > 0.0) || dt > 1.0) return;  // no clock, or a gap the motion model cannot bridge
-  // Median depth of the points tracked in the last frame: the scale of the translation prior.
-  int n = 0;
-  for (int i = 0; i < last_.f.count; ++i) {
-    if (last_.pid[i] < 0) continue;
-    const double z = (last_.T * last_.p[i]).z();
-    if (z > 0.0) depth_scratch_[n++] = static_cast<float>(z);
-  }
-  if (n < 10) return;
-  std::nth_element(depth_scratch_.begin(), depth_scratch_.begin() + n / 2,
-                   depth_scratch_.begin() + n);
-  const double depth = depth_scratch_[n / 2];
-  prior_storage_.T_pred = Tpred;
-  prior_storage_.sigma_trans = params_.motion_prior_accel * dt * dt * depth;
-  prior_storage_.sigma_rot = params_.motion_prior_angular_accel * dt * dt;
-  if (prior_storage_.sigma_trans > 0.0 || prior_storage_.sigma_rot > 0.0) {
-    prior_ = &prior_storage_;
-  }
 }
 
 int Tracker::robust_optimise(Pose& T, const Pose& guess) {
@@ -291,7 +225,7 @@ int Tracker::robust_optimise(Pose& T, const Pose& guess) {
   // so every estimator would return the same drifting pose.
   Pose Tr = guess;
   const int inl = estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), n, Tr,
-                                      corr_inl_.data(), nullptr, prior_, balance_weights(n));
+                                      corr_inl_.data(), nullptr);
   if (inl < 10) return optimise(T);  // no model: refine from the prediction
   for (int k = 0; k < n; ++k) {
     if (corr_inl_[k]) continue;
@@ -306,79 +240,6 @@ int Tracker::robust_optimise(Pose& T, const Pose& guess) {
   }
   T = Tr;
   return inl;
-}
-
-int Tracker::reject_coherent_motion(Pose& T, int inliers) {
-  const int B = bins_x_ * bins_y_;
-  std::fill(bin_sum_.begin(), bin_sum_.end(), Eigen::Vector2d::Zero());
-  std::fill(bin_count_.begin(), bin_count_.end(), 0);
-  std::fill(bin_flag_.begin(), bin_flag_.end(), uint8_t{0});
-  int n = 0;
-  double ss = 0.0;
-  for (int j = 0; j < cur_.f.count; ++j) {
-    if (cur_.pid[j] < 0) continue;
-    const Eigen::Vector3d pc = T * cur_.p[j];
-    if (pc.z() <= 1e-6) continue;
-    const Eigen::Vector2d x(cur_.f.un[j].x, cur_.f.un[j].y);
-    const Eigen::Vector2d r = (K_.project(pc) - x) / double(cur_.f.scale[j]);
-    int bx = static_cast<int>(x.x() * bins_x_ / cur_.f.width);
-    int by = static_cast<int>(x.y() * bins_y_ / cur_.f.height);
-    bx = std::min(bins_x_ - 1, std::max(0, bx));
-    by = std::min(bins_y_ - 1, std::max(0, by));
-    const int b = by * bins_x_ + bx;
-    corr_feat_[n] = j;
-    corr_bin_[n] = b;
-    bin_sum_[b] += r;
-    ++bin_count_[b];
-    ss += r.squaredNorm();
-    ++n;
-  }
-  if (n < params_.min_inliers) return inliers;
-  // Per-axis variance of a normalised residual, pooled over the frame's inliers (the chi-square
-  // gate of eq. (1) truncates it below 1).
-  const double var = std::max(1e-6, ss / (2.0 * n));
-  constexpr int kMinBinPoints = 4;
-  for (int b = 0; b < B; ++b) {
-    if (bin_count_[b] < kMinBinPoints) continue;
-    const double z2 = bin_sum_[b].squaredNorm() / (bin_count_[b] * var);
-    bin_flag_[b] = z2 > params_.coherent_motion_chi2 ? 1 : 0;
-  }
-  // Keep a flag only with a like-displaced flagged neighbour (cosine of the mean residuals).
-  int dropped_bins = 0;
-  for (int b = 0; b < B; ++b) {
-    if (!(bin_flag_[b] & 1)) continue;
-    const int bx = b % bins_x_, by = b / bins_x_;
-    bool coherent = false;
-    for (int dy = -1; dy <= 1 && !coherent; ++dy) {
-      for (int dx = -1; dx <= 1 && !coherent; ++dx) {
-        const int nx = bx + dx, ny = by + dy;
-        if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= bins_x_ || ny >= bins_y_) continue;
-        const int nb = ny * bins_x_ + nx;
-        if (!(bin_flag_[nb] & 1)) continue;
-        const double c = bin_sum_[b].dot(bin_sum_[nb]) /
-                         std::max(1e-12, bin_sum_[b].norm() * bin_sum_[nb].norm());
-        coherent = c > 0.7;
-      }
-    }
-    if (coherent) {
-      bin_flag_[b] |= 2;
-      ++dropped_bins;
-    }
-  }
-  if (dropped_bins == 0) return inliers;
-  int dropped = 0;
-  for (int k = 0; k < n; ++k) dropped += (bin_flag_[corr_bin_[k]] & 2) ? 1 : 0;
-  if (n - dropped < params_.min_inliers) return inliers;  // nothing left to refit on
-  for (int k = 0; k < n; ++k) {
-    if (!(bin_flag_[corr_bin_[k]] & 2)) continue;
-    const int j = corr_feat_[k];
-    if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
-    if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRobust);
-    cur_.pid[j] = -1;
-    cur_.row[j] = -1;
-    cur_.best_dist[j] = 1e30f;
-  }
-  return optimise(T);
 }
 
 bool Tracker::relocalize() {
@@ -591,7 +452,6 @@ TrackResult Tracker::track(const Frame& frame) {
   ++frame_no_;
   ++track_no_;
   wait_ms_ = 0.0;
-  prior_ = nullptr;  // set by make_prior() while tracking
   TrackResult result;
   const cv::Mat* img = &frame.image;
   if (frame.image.type() == CV_8UC3) {
@@ -619,8 +479,6 @@ TrackResult Tracker::track(const Frame& frame) {
       result.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
       std::swap(cur_, last_);
       have_last_ = true;
-      velocity_valid_ = false;  // spread over the initializer's frames: not a measured velocity
-      last_stamp_ns_ = frame.stamp_ns;
       return result;
     }
     fill_result(result);
@@ -631,7 +489,6 @@ TrackResult Tracker::track(const Frame& frame) {
   bool ok = false;
   if (state_ == TrackingState::kTracking || state_ == TrackingState::kRelocalized) {
     const Pose Tpred = velocity_ * last_.T;
-    make_prior(Tpred, frame.stamp_ns);
     Pose T = Tpred;
     int inl = 0;
     int nm = have_last_ ? match_motion(Tpred, params_.motion_search_px) : 0;
@@ -654,22 +511,17 @@ TrackResult Tracker::track(const Frame& frame) {
       ++frame_no_;  // new row stamps: motion matches are re-marked inside
       stats_.matches_local = match_local_map(T, params_.local_search_px);
       inl = optimise(T);
-      if (params_.coherent_motion_chi2 > 0.0 && inl >= params_.min_inliers) {
-        inl = reject_coherent_motion(T, inl);
-      }
     }
     stats_.inliers = inl;
     if (inl >= params_.min_inliers) {
       ok = true;
       cur_.T = T;
       velocity_ = T * last_.T.inverse();
-      velocity_valid_ = have_last_;  // two consecutive found poses
       state_ = TrackingState::kTracking;
       lost_frames_ = 0;
     } else {
       state_ = TrackingState::kLost;
       have_last_ = false;
-      velocity_valid_ = false;
       lost_frames_ = 1;
     }
   } else if (state_ == TrackingState::kLost) {
@@ -677,7 +529,6 @@ TrackResult Tracker::track(const Frame& frame) {
       ok = true;
       state_ = TrackingState::kRelocalized;
       velocity_ = Pose();
-      velocity_valid_ = false;
       lost_frames_ = 0;
     } else {
       ++lost_frames_;
@@ -696,7 +547,6 @@ TrackResult Tracker::track(const Frame& frame) {
     result.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
     std::swap(cur_, last_);
     have_last_ = true;
-    last_stamp_ns_ = frame.stamp_ns;
   } else {
     fill_result(result);
     result.state = state_;

@@ -59,25 +59,6 @@ struct TrackerParams {
   // Sec. 3/5: robust pose (PARSAC, `parsac.method`) on the frame's 2D-3D matches before the
   // eq. (1) refinement; false: refinement from the motion-model prediction only.
   bool robust_per_frame = true;
-  // Constant-velocity motion prior in the eq. (1) refinements while tracking (not in the paper;
-  // core/pose_estimation.h PosePrior). The standard deviation of the pose's deviation from the
-  // prediction is that of an unmodelled acceleration over the frame interval dt:
-  // sigma_trans = motion_prior_accel * dt^2 * (median depth of the tracked points), i.e. the
-  // linear acceleration in scene depths per s^2 (monocular maps have no metric scale), and
-  // sigma_rot = motion_prior_angular_accel * dt^2 (rad/s^2). 0 disables either part.
-  double motion_prior_accel = 0.0;
-  double motion_prior_angular_accel = 0.0;
-  // Coherent sub-motion test after the final eq. (1) (not in the paper): per PARSAC bin
-  // (parsac.bins_x x bins_y) the mean normalised reprojection residual of the inliers is tested
-  // against zero (its squared z-score is chi-square with 2 DoF for static points); bins above
-  // this threshold whose 8-neighbourhood holds another such bin displaced the same way (a
-  // rigidly moving region, not one bad point) are dropped and the pose refined without them.
-  // 0 disables. 13.82 = chi-square 2 DoF, 99.9%.
-  double coherent_motion_chi2 = 0.0;
-  // Bin-balanced eq. (1) while tracking (not in the paper): each observation is weighted by
-  // 1 / (observations in its PARSAC bin), normalised to a mean weight of 1, so every image
-  // region pulls the pose equally, as PARSAC's score (eq. 5) rewards spread, not count.
-  bool bin_balanced_refine = false;
   InitializerParams init;
 
   void visit(ParamVisitor& v);
@@ -109,12 +90,7 @@ class Tracker {
   int match_motion(const Pose& T, double radius);
   int match_local_map(const Pose& T, double radius);
   int optimise(Pose& T);
-  // Sets prior_ for this frame from the prediction (nullptr when no valid velocity).
-  void make_prior(const Pose& Tpred, int64_t stamp_ns);
   int robust_optimise(Pose& T, const Pose& guess);
-  // The coherent sub-motion test (TrackerParams::coherent_motion_chi2) on the current inliers;
-  // returns the inlier count after the refit (unchanged when nothing is dropped).
-  int reject_coherent_motion(Pose& T, int inliers);
   bool relocalize();
   void maybe_send_keyframe(const Frame& frame);
   // Sec. 4 per-frame map updating: every SlamLink::observe_every_n tracked frames (not on a
@@ -156,19 +132,6 @@ class Tracker {
   FrameState cur_, last_;
   bool have_last_ = false;
   Pose velocity_;
-  bool velocity_valid_ = false;  // velocity_ from two consecutive tracked frames
-  int64_t last_stamp_ns_ = 0;    // stamp of last_ (the last tracked frame)
-  PosePrior prior_storage_;
-  const PosePrior* prior_ = nullptr;  // this frame's motion prior, if any
-  std::vector<float> depth_scratch_;
-  int bins_x_ = 10, bins_y_ = 10;
-  std::vector<Eigen::Vector2d, Eigen::aligned_allocator<Eigen::Vector2d>> bin_sum_;
-  std::vector<int> bin_count_, corr_bin_;
-  std::vector<uint8_t> bin_flag_;
-  std::vector<float> corr_w_;
-  int bin_of(float u, float v) const;
-  // Fills corr_w_[0..n) from corr_x_ (bin-balanced weights); returns corr_w_ or nullptr.
-  const float* balance_weights(int n);
   int frames_since_kf_ = 0;
   int frames_since_obs_ = 0;
   int lost_frames_ = 0;
