@@ -68,7 +68,8 @@ struct TrackerParams {
   // (parsac.bins_x x bins_y) with >= 4 inliers tests its mean normalised residual against zero
   // (squared z-score, chi-square 2 DoF for static points). Bins above `submotion_chi2` with a
   // like-displaced such bin among their 8 neighbours (a moving region, not one bad point) are
-  // dropped for this frame and eq. (1) is re-run without them. 0 disables.
+  // dropped for this frame and eq. (1) is re-run without them; then the test runs once more
+  // under the refit pose. 0 disables.
   double submotion_chi2 = 13.82;  // chi-square 2 DoF, 99.9%
   // 1.5 px keeps about two thirds of the static inliers of a 1-px-per-axis keypoint noise (level
   // 0), so the tight consensus is still the majority motion, while a region displaced by a few
@@ -106,9 +107,10 @@ class Tracker {
   int match_local_map(const Pose& T, double radius);
   int optimise(Pose& T);
   int robust_optimise(Pose& T, const Pose& guess);
-  // The coherent sub-motion test (TrackerParams::submotion_chi2) on the current inliers;
-  // returns the inlier count after the refit (`inliers` when nothing is dropped).
-  int reject_submotion(Pose& T, int inliers);
+  // One pass of the coherent sub-motion test (TrackerParams::submotion_chi2) on the current
+  // inliers; returns the inlier count after the refit (`inliers` when nothing is dropped) and
+  // whether anything was dropped.
+  int reject_submotion(Pose& T, int inliers, bool* dropped_any);
   bool relocalize();
   void maybe_send_keyframe(const Frame& frame);
   // Sec. 4 per-frame map updating: every SlamLink::observe_every_n tracked frames (not on a
