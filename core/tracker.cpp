@@ -366,6 +366,7 @@ bool Tracker::relocalize() {
   }
   Pose T;
   estimator_.reset_prior();  // the previous frames' bin prior says nothing about this view
+  tight_.reset_prior();
   const int inl =
       estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), m, T, corr_inl_.data());
   if (inl < 10) return false;

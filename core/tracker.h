@@ -1,5 +1,6 @@
 // The tracker (Sec. 3): per frame, features are extracted and matched to the reference
-// features (3D points), the camera pose is estimated robustly and refined by eq. (1), and the
+// features (3D points), the camera pose is estimated robustly and refined by eq. (1) (then
+// checked for a coherently displaced image region, TrackerParams::submotion_chi2), and the
 // frame is proposed as a keyframe by the paper's rules (Sec. 4).
 //
 // State machine (published with every pose):
