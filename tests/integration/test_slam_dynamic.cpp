@@ -8,12 +8,16 @@
 //    estimator swapped (PARSAC vs RANSAC). The book carries more of the tracker's features
 //    than the static background when it starts moving (tests/unit/test_synth.cpp checks the
 //    premise). Issue 8 asks for ATE <= 0.5% with PARSAC and RANSAC >= 3x worse or lost.
-//    Measured (ORB, 300 frames, seeds 1/2/3): PARSAC 0.545 / 0.404 / 0.410% of the path
-//    (mean 0.453%; the default seed misses 0.5%: the pose follows the book for ~7 frames when
-//    it starts moving, while its displacement is still inside the inlier gate), RANSAC
-//    0.690 / 0.865 / 0.796% (mean 1.73x PARSAC's; the 3x bar is NOT met: the bucketed front
-//    end keeps enough background points for RANSAC to recover within ~10 frames). Asserted:
-//    PARSAC <= 0.6% on every seed and <= 0.5% on average, RANSAC >= 1.5x worse or lost.
+//    Measured (ORB, 300 frames, seeds 1-6, with the tracker's coherent sub-motion test,
+//    tracker.submotion_chi2, two passes): PARSAC 0.446 / 0.391 / 0.416 / 0.371 / 0.354 / 0.403%
+//    of the path (mean 0.397%; without the test 0.552 / 0.405 / 0.438 / 0.523 / 0.442 / 0.496%,
+//    mean 0.476%: the book dragged the pose for ~7 frames when it started moving, inside the
+//    inlier gate), RANSAC 1.039 / 0.406 / 0.914 / 1.106 / 0.369 / 0.451% (mean ATE 1.80x
+//    PARSAC's; without the test 1.94x). The 3x bar is NOT met: the bucketed front end keeps
+//    enough background points for RANSAC to recover within ~10 frames, and the sub-motion test
+//    (which uses the configured estimator) helps RANSAC too (seeds 2, 5, 6: about 1.0-1.1x).
+//    Asserted: PARSAC <= 0.55% on every seed and <= 0.45% on average, RANSAC >= 1.5x worse or
+//    lost.
 // Deterministic offline runs (core/slam.h run_offline), one per scenario and estimator,
 // shared between the assertions.
 #include <gtest/gtest.h>
@@ -71,8 +75,8 @@ void expect_issue8_bars(const SynthRun& r) {
 
 // One run of a chaotic system is a poor estimate (a different random seed of the same scene
 // moves the ATE by +-20%), so the Figure 8 comparison is made on the default scene (seed 1)
-// and on two more seeds of it; the means are compared.
-constexpr int64_t kRigidSeeds[] = {1, 2, 3};
+// and on five more seeds of it; the means are compared.
+constexpr int64_t kRigidSeeds[] = {1, 2, 3, 4, 5, 6};
 
 TEST(SlamDynamic, RigidObjectParsac) {
   double sum_pct = 0;
@@ -84,14 +88,15 @@ TEST(SlamDynamic, RigidObjectParsac) {
         << "seed " << seed << ": " << r.tracked_after_init << " of " << r.after_init
         << " frames after initialization";
     ASSERT_TRUE(r.s.eval_ok) << "seed " << seed;
-    // Issue 8's 0.5% on the default seed: not met (0.545%); every seed <= 0.6%.
-    EXPECT_LE(r.s.ate_pct, 0.6) << "seed " << seed << ": ATE " << r.s.ate_rmse_m << " m over "
-                                << r.s.path_m << " m";
+    // Issue 8's 0.5% is met on every seed (at most 0.446%); asserted with room for the +-20%
+    // a single run moves by.
+    EXPECT_LE(r.s.ate_pct, 0.55) << "seed " << seed << ": ATE " << r.s.ate_rmse_m << " m over "
+                                 << r.s.path_m << " m";
     sum_pct += r.s.ate_pct;
   }
   const double mean_pct = sum_pct / std::size(kRigidSeeds);
-  std::printf("[slam] rigid_object parsac: mean ATE over seeds 1-3 %.3f%% of path\n", mean_pct);
-  EXPECT_LE(mean_pct, 0.5);  // measured 0.453%
+  std::printf("[slam] rigid_object parsac: mean ATE over seeds 1-6 %.3f%% of path\n", mean_pct);
+  EXPECT_LE(mean_pct, 0.45);  // measured 0.397% (0.476% without the sub-motion test)
 }
 
 TEST(SlamDynamic, RigidObjectRansacIsLostOrWorse) {
@@ -106,11 +111,13 @@ TEST(SlamDynamic, RigidObjectRansacIsLostOrWorse) {
     parsac += p.s.ate_rmse_m;
     ransac += r.s.ate_rmse_m;
   }
-  std::printf("[slam] rigid_object: RANSAC / PARSAC mean ATE over seeds 1-3: %.2fx\n",
+  std::printf("[slam] rigid_object: RANSAC / PARSAC mean ATE over seeds 1-6: %.2fx\n",
               ransac / parsac);
-  // Issue 8 asks for 3x: NOT met (measured 1.73x over seeds 1-3; 1.27x on seed 1, 2.1x on 2).
-  EXPECT_GE(ransac, 1.5 * parsac) << "RANSAC mean ATE " << ransac / 3 << " m, PARSAC " << parsac / 3
-                                  << " m";
+  // Issue 8 asks for 3x: NOT met (measured 1.80x over seeds 1-6: 2.3x on seed 1, 2.2x on 3,
+  // 3.0x on 4, about 1.0-1.1x on 2, 5 and 6).
+  const double runs = static_cast<double>(std::size(kRigidSeeds));
+  EXPECT_GE(ransac, 1.5 * parsac) << "RANSAC mean ATE " << ransac / runs << " m, PARSAC "
+                                  << parsac / runs << " m";
 }
 
 TEST(SlamDynamic, WalkingXyz) {
