@@ -87,7 +87,7 @@ struct DynResult {
   std::vector<EpisodeRecall> episodes;
 };
 
-constexpr int kFrames = 240;
+constexpr int kFrames = 240;   // rearrange: the four change episodes, without the walker
 constexpr int kSnapshot = 59;  // last frame before the first move (the poster's)
 constexpr int kWithin = 30;    // issue 8: invalidated within 30 frames of the move
 
@@ -170,11 +170,12 @@ bool window_touches_moved(const SynthScene& scene, const CameraModel& cam, int r
   return false;
 }
 
-DynResult run(bool occlusion_handling, bool map_update = true) {
+DynResult run(bool occlusion_handling, bool map_update = true,
+              const std::string& scenario = "rearrange", int frame_count = kFrames) {
   SourceOptions opt;
-  std::unique_ptr<FrameSource> src = open_synth_source("rearrange", opt, kFrames);
+  std::unique_ptr<FrameSource> src = open_synth_source(scenario, opt, frame_count);
   const CameraModel cam = *src->camera();
-  SynthSequence seq("rearrange", kFrames);
+  SynthSequence seq(scenario, frame_count);
   SlamParams params = test::params_from_env();
   params.dynamic.map_update = map_update;
   params.dynamic.occlusion_handling = occlusion_handling;
@@ -198,13 +199,13 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   std::unordered_map<int64_t, Invalidation> inval;
   std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>> snapshot;  // id -> (ref, p)
   // Per change episode, the points valid just before it started (id -> (ref, p)).
-  const std::vector<Episode> episodes = change_episodes(seq.scene(), kFrames);
+  const std::vector<Episode> episodes = change_episodes(seq.scene(), frame_count);
   std::vector<std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>>> before(episodes.size());
   std::unordered_map<int64_t, int> erased_at;  // watched id -> first frame it was gone
   std::vector<Eigen::Vector3d> est, gt;
   DynResult r;
   Frame frame;
-  for (int n = 0; n < kFrames; ++n) {
+  for (int n = 0; n < frame_count; ++n) {
     if (src->read(frame, 1000) != SourceStatus::kOk) break;
     frame_of_stamp[frame.stamp_ns] = n;
     const TrackResult tr = tracker.track(frame);
@@ -294,7 +295,7 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   double se = 0;
   for (size_t i = 0; i < est.size(); ++i) se += (sim.apply(est[i]) - gt[i]).squaredNorm();
   r.ate_m = std::sqrt(se / std::max<size_t>(1, est.size()));
-  for (int n = 1; n < kFrames; ++n) {
+  for (int n = 1; n < frame_count; ++n) {
     r.path_m += (seq.T_world_cam(n).translation() - seq.T_world_cam(n - 1).translation()).norm();
   }
   r.ate_pct = r.path_m > 0 ? 100.0 * r.ate_m / r.path_m : 0;
@@ -415,9 +416,9 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
     if (!pw.allFinite()) continue;
     const auto iv = inval.find(kv.first);
     // Not moved by the end of the run: was it ever occluded while in view?
-    if (scene.point_fate(pw, ref, kFrames - 1, kTol).moved) continue;
+    if (scene.point_fate(pw, ref, frame_count - 1, kTol).moved) continue;
     bool occluded = false, covered = false;
-    for (int k = kSnapshot + 1; k < kFrames; k += 3) {
+    for (int k = kSnapshot + 1; k < frame_count; k += 3) {
       const SynthPointFate g = scene.point_fate(pw, ref, k, kTol);
       if (!g.in_view || !g.occluded) continue;
       occluded = true;
@@ -434,14 +435,15 @@ DynResult run(bool occlusion_handling, bool map_update = true) {
   return r;
 }
 
-void print(const char* name, const DynResult& r) {
+void print(const char* name, const DynResult& r, const char* scenario = "rearrange") {
   auto pct = [](int a, int b) { return b > 0 ? 100.0 * a / b : 0.0; };
   std::printf(
-      "[dynamic] rearrange %s: tracked %d/%d | recall %d/%d (%.1f%%) | precision %d/%d (%.1f%%), "
+      "[dynamic] %s %s: tracked %d/%d | recall %d/%d (%.1f%%) | precision %d/%d (%.1f%%), "
       "off-surface %d | occluded-only invalidated %d/%d (%.1f%%)\n",
-      name, r.tracked, r.frames, r.moved_invalidated, r.moved, pct(r.moved_invalidated, r.moved),
-      r.invalidated_moved, r.invalidated, pct(r.invalidated_moved, r.invalidated),
-      r.invalidated_off_surface, r.occluded_only_invalidated, r.occluded_only,
+      scenario, name, r.tracked, r.frames, r.moved_invalidated, r.moved,
+      pct(r.moved_invalidated, r.moved), r.invalidated_moved, r.invalidated,
+      pct(r.invalidated_moved, r.invalidated), r.invalidated_off_surface,
+      r.occluded_only_invalidated, r.occluded_only,
       pct(r.occluded_only_invalidated, r.occluded_only));
   std::printf(
       "[dynamic]   refined: recall (invalidated or erased) %d/%d (%.1f%%) | precision (moved or "
@@ -477,6 +479,36 @@ void print(const char* name, const DynResult& r) {
 }
 
 }  // namespace
+
+// The same ground-truth evaluation on the other dynamic scenarios (defaults, 300 frames): where
+// nothing static changes (people walking, a light) every invalidation of a point on an
+// unchanged surface is a false alarm, and occluded-only says how many points the passing
+// occluders cost. Recall is defined where an object visible from the start moves
+// and stops before the run's last 30 frames (none here: rigid_object's book moves to the end).
+// Printed for docs/slam.md's table; asserted: the occluded points are kept (bounds about twice
+// the measured shares, below) and no invalid point is left in the index.
+TEST(DynamicRearrange, OtherScenariosAgainstGroundTruth) {
+  struct Row {
+    const char* scenario;
+    double max_occluded_share;  // asserted bound (measured value in the comment)
+  };
+  const Row rows[] = {
+      {"walking_xyz", 0.10},         // measured 1.3% (17 of 1299)
+      {"walking_halfsphere", 0.15},  // measured 5.5% (82 of 1504)
+      {"rigid_object", 0.15},        // measured 2.5% (7 of 281)
+      {"flashlight", 0.25},          // measured 11.8% (15 of 127)
+      {"sitting", 0.20},             // measured 8.5% (11 of 130)
+  };
+  auto ratio = [](int a, int b) { return b > 0 ? double(a) / b : 0.0; };
+  for (const Row& row : rows) {
+    const DynResult r = run(true, true, row.scenario, 300);
+    print("defaults", r, row.scenario);
+    ASSERT_GT(r.tracked, r.frames / 2) << row.scenario;
+    EXPECT_LE(ratio(r.occluded_only_invalidated, r.occluded_only), row.max_occluded_share)
+        << row.scenario;
+    EXPECT_EQ(r.invalid_in_index, 0) << row.scenario;
+  }
+}
 
 TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   const DynResult on = run(true);
