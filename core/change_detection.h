@@ -58,7 +58,9 @@ struct ChangeDetectionParams {
   // What replaced X (see NewSurface): the current window at x' is compared with the previous
   // checked frame's window at X's projection (eq. (2), same tau: moving or static) and, when
   // static, matched along x's ray into the recent frame with the widest baseline (its depth:
-  // in front of X or not). Addition to Algorithm 1 in the spirit of the second paper's
+  // in front of X or not), the depth confirmed in a third recent frame (about half that
+  // baseline: a moving object's own motion along the epipolar line mimics a depth in two
+  // views, not in three). Addition to Algorithm 1 in the spirit of the second paper's
   // optical-flow test, for the case the paper leaves open (nothing tracked near x'). Frames
   // older than temporal_max_gap_s are not used; temporal_depth_margin is the relative depth
   // below z_X that counts as "in front".

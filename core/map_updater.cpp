@@ -325,6 +325,26 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
     }
   }
   if (!(best <= params_.tau_c)) return NewSurface::kUnknown;  // no consistent static match
+  // A third view: a moving object's own motion along the epipolar line mimics a depth in two
+  // views, not in three. The recent frame whose baseline is nearest half the widest must see
+  // the window at the depth found too.
+  const Recent* mid = nullptr;
+  double mid_err = std::numeric_limits<double>::infinity();
+  for (const Recent& r : history_) {
+    if (!usable(r) || &r == wide) continue;
+    const double e = std::abs((r.T_cam_world.centre() - c_cur).norm() - 0.5 * best_b);
+    if (e < mid_err) {
+      mid_err = e;
+      mid = &r;
+    }
+  }
+  if (mid == nullptr || mid_err > 0.25 * best_b) return NewSurface::kUnknown;
+  const Eigen::Vector3d qm = mid->T_cam_world * (c_cur + ray * best_z);
+  if (qm.z() <= 1e-9) return NewSurface::kUnknown;
+  const double d_mid = appearance_difference(image, x_prime, mid->image, K_.project(qm),
+                                             best_z / qm.z(), params_.window, params_.search_d,
+                                             params_.normalise_appearance, params_.tau_c);
+  if (!(d_mid <= params_.tau_c)) return NewSurface::kUnknown;
   // In front: the match lies clearly (2 px) on the near side of X's depth. At or behind: only
   // when the baseline separates X's depth from the "in front" boundary by 2 px.
   if (best_z < z_front) {
