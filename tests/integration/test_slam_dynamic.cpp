@@ -10,15 +10,15 @@
 //    premise). Issue 8 asks for ATE <= 0.5% with PARSAC and RANSAC >= 3x worse or lost.
 //    Measured (ORB, 300 frames, seeds 1-6, with the tracker's coherent sub-motion test,
 //    tracker.submotion_chi2, two passes, and the map updater's temporal check): PARSAC
-//    0.485 / 0.356 / 0.407 / 0.376 / 0.343 / 0.385% of the path (mean 0.392%; before both
+//    0.474 / 0.454 / 0.402 / 0.405 / 0.379 / 0.424% of the path (mean 0.423%; before both
 //    0.552 / 0.405 / 0.438 / 0.523 / 0.442 / 0.496%, mean 0.476%: the book dragged the pose for
 //    ~7 frames when it started moving, inside the inlier gate), RANSAC
-//    0.721 / 0.504 / 0.439 / 0.401 / 0.363 / 0.474% (mean ATE 1.23x PARSAC's; 1.94x before
+//    0.757 / 0.482 / 0.442 / 0.369 / 0.409 / 0.450% (mean ATE 1.15x PARSAC's; 1.94x before
 //    both, 1.80x with the sub-motion test alone). The 3x bar is NOT met: the bucketed front end
 //    keeps enough background points for RANSAC to recover within ~10 frames, and both the
 //    sub-motion test (which uses the configured estimator) and map updating (stale book points
 //    leave the map) help RANSAC as much as PARSAC. Asserted: PARSAC <= 0.55% on every seed and
-//    <= 0.45% on average, RANSAC measurably worse (>= 1.1x) or lost.
+//    <= 0.45% on average, RANSAC measurably worse on average (>= 1.1x) or lost.
 // Deterministic offline runs (core/slam.h run_offline), one per scenario and estimator,
 // shared between the assertions.
 #include <gtest/gtest.h>
@@ -97,7 +97,7 @@ TEST(SlamDynamic, RigidObjectParsac) {
   }
   const double mean_pct = sum_pct / std::size(kRigidSeeds);
   std::printf("[slam] rigid_object parsac: mean ATE over seeds 1-6 %.3f%% of path\n", mean_pct);
-  EXPECT_LE(mean_pct, 0.45);  // measured 0.392% (0.476% before the sub-motion test)
+  EXPECT_LE(mean_pct, 0.45);  // measured 0.423% (0.476% before the sub-motion test)
 }
 
 TEST(SlamDynamic, RigidObjectRansacIsLostOrWorse) {
@@ -114,8 +114,8 @@ TEST(SlamDynamic, RigidObjectRansacIsLostOrWorse) {
   }
   std::printf("[slam] rigid_object: RANSAC / PARSAC mean ATE over seeds 1-6: %.2fx\n",
               ransac / parsac);
-  // Issue 8 asks for 3x: NOT met (measured 1.23x over seeds 1-6: 1.49x on seed 1, 1.42x on
-  // 2, 1.23x on 6, 1.06-1.08x on 3, 4 and 5).
+  // Issue 8 asks for 3x: NOT met (measured 1.15x over seeds 1-6: 1.60x on seed 1, 1.06-1.10x
+  // on 2, 3, 5 and 6, 0.91x on 4).
   const double runs = static_cast<double>(std::size(kRigidSeeds));
   EXPECT_GE(ransac, 1.1 * parsac) << "RANSAC mean ATE " << ransac / runs << " m, PARSAC "
                                   << parsac / runs << " m";
