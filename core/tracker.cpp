@@ -224,6 +224,16 @@ int Tracker::optimise(Pose& T) {
   return st.inliers;
 }
 
+void Tracker::reject_match(int j) {
+  // Rejected this frame: the projection search must not match the point again, or eq. (1)
+  // would re-admit what the robust estimator rejected (e.g. the moving book of Figure 8).
+  if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
+  if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRobust);
+  cur_.pid[j] = -1;
+  cur_.row[j] = -1;
+  cur_.best_dist[j] = 1e30f;
+}
+
 int Tracker::robust_optimise(Pose& T, const Pose& guess) {
   // Sec. 3/5: PARSAC over the frame's matches, seeded with the motion-model prediction; its
   // outliers are dropped, then eq. (1) refines over the rest.
@@ -246,14 +256,7 @@ int Tracker::robust_optimise(Pose& T, const Pose& guess) {
   if (inl < 10) return optimise(T);  // no model: refine from the prediction
   for (int k = 0; k < n; ++k) {
     if (corr_inl_[k]) continue;
-    const int j = corr_feat_[k];
-    // Rejected this frame: the projection search below must not match the point again, or
-    // eq. (1) would re-admit what PARSAC rejected (e.g. the moving book of Figure 8).
-    if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
-    if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRobust);
-    cur_.pid[j] = -1;
-    cur_.row[j] = -1;
-    cur_.best_dist[j] = 1e30f;
+    reject_match(corr_feat_[k]);
   }
   T = Tr;
   return inl;
@@ -339,12 +342,7 @@ int Tracker::reject_submotion(Pose& T, int inliers, bool* dropped_any) {
   if (n - dropped < params_.min_inliers) return inliers;  // too little left to refit on
   for (int k = 0; k < n; ++k) {
     if (!(bin_flag_[corr_bin_[k]] & 2)) continue;
-    const int j = corr_feat_[k];
-    if (cur_.row[j] >= 0) row_rejected_[cur_.row[j]] = track_no_;
-    if (debug_sink_) debug_rejected_[j] = uint8_t(DebugFeatureKind::kRejectedRobust);
-    cur_.pid[j] = -1;
-    cur_.row[j] = -1;
-    cur_.best_dist[j] = 1e30f;
+    reject_match(corr_feat_[k]);
   }
   *dropped_any = true;
   return optimise(T);

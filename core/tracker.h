@@ -108,6 +108,8 @@ class Tracker {
   int match_local_map(const Pose& T, double radius);
   int optimise(Pose& T);
   int robust_optimise(Pose& T, const Pose& guess);
+  // Drops feature j's match for this frame (robust-estimator outlier or dropped sub-motion bin).
+  void reject_match(int j);
   // One pass of the coherent sub-motion test (TrackerParams::submotion_chi2) on the current
   // inliers; returns the inlier count after the refit (`inliers` when nothing is dropped) and
   // whether anything was dropped.
