@@ -31,6 +31,15 @@
 // Issue 8's bars (recall >= 80%, precision >= 90%, occluded-only <= 5%, --no-map-update ATE
 // measurably worse) are NOT met; the asserted bars are the ones this implementation meets,
 // about 10 points below the measured values (one run of a chaotic system).
+// Why --no-map-update does not hurt the ATE here (docs/slam.md, seeds 0-6, measured with the
+// tracker's per-frame inliers against point_fate in a local instrumented run): without
+// updating, 104-120 stale points (surface moved, old place in view) stay in the index per
+// frame after the first move, with updating 39-53; but only 2-3 of them per frame pass the
+// descriptor test at their old place at all, and of those about a third end as eq. (1)
+// inliers (0.5-1.3 per frame, 0.1-0.2% of ~710 inliers, with or without updating). Dropping
+// them from eq. (1) moves the camera centre by 0.2-0.4 mm on average (ATE 3-12 mm). No
+// inlier was ever an invalidated point or a point outside the current index. ATE over seeds
+// 0-6: mean 0.317% with updating, 0.310% without (per-seed differences -0.007..+0.034 points).
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -82,6 +91,10 @@ struct DynResult {
   int occluded_apart = 0, occluded_apart_invalidated = 0;
   double ate_pct = 0, ate_m = 0, path_m = 0;
   int invalid_in_index = 0, index_rows = 0;
+  // Stale reference features: points of the matching index whose surface had moved, with their
+  // old place in view (summed over every 3rd tracked frame from the first change on).
+  long stale_in_index = 0;
+  int stale_frames = 0;
   int keyframes_accepted = 0, keyframes_culled = 0, keyframes_replaced = 0, observations = 0;
   double update_ms = 0;
   std::vector<EpisodeRecall> episodes;
@@ -201,7 +214,10 @@ DynResult run(bool occlusion_handling, bool map_update = true,
   // Per change episode, the points valid just before it started (id -> (ref, p)).
   const std::vector<Episode> episodes = change_episodes(seq.scene(), frame_count);
   std::vector<std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>>> before(episodes.size());
+  int first_change = std::numeric_limits<int>::max();
+  for (const Episode& e : episodes) first_change = std::min(first_change, e.start);
   std::unordered_map<int64_t, int> erased_at;  // watched id -> first frame it was gone
+  std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>> truth_of;  // cache for stale_*
   std::vector<Eigen::Vector3d> est, gt;
   DynResult r;
   Frame frame;
@@ -261,6 +277,23 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     for (const auto& b : before) {
       for (const auto& kv : b) {
         if (!erased_at.count(kv.first) && !map.points.count(kv.first)) erased_at[kv.first] = n;
+      }
+    }
+    if (n >= first_change && n % 3 == 0 && test::is_tracked(tr.state)) {
+      if (const std::shared_ptr<const MapSnapshot> snap = link->index.acquire()) {
+        ++r.stale_frames;
+        for (int64_t id : snap->ids) {
+          auto t = truth_of.find(id);
+          if (t == truth_of.end()) {
+            const auto it = map.points.find(id);
+            if (it == map.points.end()) continue;
+            t = truth_of.emplace(id, truth(it->second)).first;
+          }
+          if (t->second.first < 0 || !t->second.second.allFinite()) continue;
+          const SynthPointFate g =
+              seq.scene().point_fate(t->second.second, t->second.first, n, kTol);
+          r.stale_in_index += g.moved && g.in_view;
+        }
       }
     }
     if (n == kSnapshot) {
@@ -465,6 +498,12 @@ void print(const char* name, const DynResult& r, const char* scenario = "rearran
       "[dynamic]   false positives: off-surface %d, occluded by a moving object %d, occluded by "
       "a static object %d, visible and unchanged %d, out of view %d\n",
       r.fp_off_surface, r.fp_occluded_moving, r.fp_occluded_static, r.fp_visible, r.fp_out_of_view);
+  if (r.stale_frames > 0) {
+    std::printf(
+        "[dynamic]   stale points in the matching index with their old place in view: %.1f per "
+        "frame (every 3rd frame from the first change, %d frames)\n",
+        double(r.stale_in_index) / r.stale_frames, r.stale_frames);
+  }
   for (const EpisodeRecall& e : r.episodes) {
     std::printf(
         "[dynamic]   episode %s frames %d-%d: %d points on it, invalidated within %d frames %d "
@@ -537,6 +576,15 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   // Per-frame updating removes many more points of the moved surfaces within 30 frames of
   // their moves (refined recall 76.5%); culling alone (no map update) removes few (15.3%).
   EXPECT_GT(ratio(on.moved_removed, on.moved), ratio(none.moved_removed, none.moved) + 0.25);
+  // So the index the tracker matches against holds fewer stale points (surface moved, old place
+  // in view): measured 43.6 vs 108.9 per frame (seeds 0-6 in the local run: 39-53 vs 104-120,
+  // ratio 0.36-0.45); bound 0.6. This is what map updating changes on this scene; the ATE is
+  // not measurably better for it (see the header: the stale points almost never match).
+  ASSERT_GT(on.stale_frames, 0);
+  ASSERT_GT(none.stale_frames, 0);
+  EXPECT_GT(none.stale_in_index, 0);
+  EXPECT_LT(double(on.stale_in_index) / on.stale_frames,
+            0.6 * double(none.stale_in_index) / none.stale_frames);
   // Occlusion handling improves precision (measured 57.0% vs 34.3%).
   EXPECT_GT(ratio(on.invalidated_moved, on.invalidated),
             ratio(off.invalidated_moved, off.invalidated));
@@ -549,7 +597,8 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
             0.70);
   EXPECT_LE(ratio(on.occluded_only_invalidated, on.occluded_only), 0.32);
   // Tracking stays good with every ablation (measured 0.409%, 0.462%, 0.410%; the bar of
-  // test_slam_dynamic).
+  // test_slam_dynamic). Issue 8's "--no-map-update measurably worse" is not asserted: over
+  // seeds 0-6 it is not (mean 0.310% without vs 0.317% with updating; the header says why).
   EXPECT_LT(on.ate_pct, 0.5);
   EXPECT_LT(off.ate_pct, 0.5);
   EXPECT_LT(none.ate_pct, 0.5);
