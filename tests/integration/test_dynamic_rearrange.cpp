@@ -34,12 +34,13 @@
 // Why --no-map-update does not hurt the ATE here (docs/slam.md, seeds 0-6, measured with the
 // tracker's per-frame inliers against point_fate in a local instrumented run): without
 // updating, 104-120 stale points (surface moved, old place in view) stay in the index per
-// frame after the first move, with updating 39-53; but only 2-3 of them per frame pass the
-// descriptor test at their old place at all, and of those about a third end as eq. (1)
-// inliers (0.5-1.3 per frame, 0.1-0.2% of ~710 inliers, with or without updating). Dropping
-// them from eq. (1) moves the camera centre by 0.2-0.4 mm on average (ATE 3-12 mm). No
-// inlier was ever an invalidated point or a point outside the current index. ATE over seeds
-// 0-6: mean 0.317% with updating, 0.310% without (per-seed differences -0.007..+0.034 points).
+// frame after the first move, with updating 39-53; but only 2-3.5 of them per frame are matched
+// at all (the rest fail the projection search's descriptor test or gates at their old place),
+// and of those about a third end as eq. (1) inliers (0.5-1.3 per frame, 0.1-0.2% of ~710 inliers,
+// with or without updating). Dropping them from eq. (1) moves the camera centre by 0.2-0.4 mm on
+// average (ATE 3-12 mm). No inlier was ever an invalidated point or a point outside the current
+// index. ATE over seeds 0-6: mean 0.317% with updating, 0.310% without (per-seed differences
+// -0.007..+0.034 points).
 #include <gtest/gtest.h>
 
 #include <limits>
