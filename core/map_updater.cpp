@@ -411,8 +411,9 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   tracked_ids_sorted_.clear();
   for (int i = 0; i < frame.count; ++i) {
     if (frame.point_of[i] < 0) continue;
-    const MapPoint* p = map.point(frame.point_of[i]);
+    MapPoint* p = map.point(frame.point_of[i]);
     if (p == nullptr) continue;
+    p->unmatched = 0;
     const bool flowing = st.flow_computed && keep_[i] == 0;
     if (params_.landmark_counters && !flowing) {
       counter_event(map, p->id, LandmarkEvent::kMatchedStill);
@@ -443,6 +444,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   // would invalidate a point the others still see unchanged).
   candidates_.clear();
   triggered_.clear();
+  prune_.clear();
   for (int s = 0; s < nsel; ++s) {
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
@@ -560,6 +562,13 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     if (d == PointDecision::kKeepSameAppearance) {
       confirm_.erase(c.id);
       counter_event(map, c.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
+      // Present and unoccluded, yet not tracked: counted only where the tracker would try to
+      // match it (its viewing-angle and distance gates, core/tracker.cpp match_local_map).
+      const double dist = (cur_c - p->p_world).norm();
+      if (params_.prune_unmatched && p->normal.dot(c.n_xp) >= 0.5 && dist >= p->min_dist &&
+          dist <= p->max_dist && ++p->unmatched > params_.miss_threshold) {
+        prune_.push_back(c.id);
+      }
     }
     if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
         counter_event(map, c.id, LandmarkEvent::kMissed)) {
@@ -596,6 +605,11 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       kf->valid = false;
       ++st.keyframes_invalidated;
     }
+  }
+  for (int64_t id : prune_) {
+    map.erase_point(id);
+    confirm_.erase(id);
+    ++st.points_pruned;
   }
   return st;
 }

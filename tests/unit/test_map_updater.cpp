@@ -137,6 +137,7 @@ ChangeDetectionParams paper_params() {
   p.landmark_counters = false;
   p.temporal_check = false;  // the paper's Algorithm 1: no evidence about what replaced X
   p.ray_search = false;
+  p.prune_unmatched = false;
   return p;
 }
 
@@ -362,6 +363,70 @@ TEST(MapUpdater, PersistentUntrackedChangeIsDiscardedByTheMissCounter) {
   EXPECT_EQ(st.counter_discards, static_cast<int>(s.object_ids.size()));
   ASSERT_EQ(rec.size(), s.object_ids.size());
   EXPECT_EQ(rec[0].cause, InvalidationCause::kMissed);
+}
+
+TEST(MapUpdater, UnchangedPointsTheTrackerNeverMatchesArePruned) {
+  // The frame is the keyframe's view, unchanged: every point is in view and looks the same.
+  // Half the static points are tracked in every frame; the others never are (duplicates the
+  // tracker does not use). The untracked ones are erased after miss_threshold + 1 checks; a
+  // point tracked once restarts its count; a point seen from beyond the distance range the
+  // tracker matches it at is not counted.
+  Scene s = make_scene(1.5);
+  for (auto& [id, mp] : s.map.points) mp.normal = -mp.p_world.normalized();  // point -> camera
+  ChangeDetectionParams p = paper_params();
+  p.histogram_threshold = 0.0;  // the unchanged frame is checked
+  p.prune_unmatched = true;
+  p.miss_threshold = 3;
+  const PinholeIntrinsics K = intrinsics();
+  std::vector<int64_t> tracked, untracked;
+  for (size_t i = 0; i < s.static_ids.size(); ++i) {
+    (i % 2 == 0 ? tracked : untracked).push_back(s.static_ids[i]);
+  }
+  const int64_t once = untracked[0];  // tracked in the third frame only
+  const int64_t far = untracked[1];   // outside its matching distance range
+  s.map.points.at(far).max_dist = 1.0f;
+  auto frame = [&](bool with_once) {
+    std::vector<int64_t> ids = tracked;
+    if (with_once) ids.push_back(once);
+    resize_features(s.cur, static_cast<int>(ids.size()));
+    s.cur_point_of = ids;
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const Eigen::Vector2d x = K.project(s.map.points.at(ids[i]).p_world);
+      s.cur.un[i] = cv::Point2f(float(x.x()), float(x.y()));
+      s.cur.kps[i].pt = s.cur.un[i];
+    }
+  };
+  MapUpdater u(p, intrinsics());
+  int pruned = 0;
+  for (int k = 0; k < 3; ++k) {
+    frame(k == 2);
+    pruned += u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of).points_pruned;
+  }
+  EXPECT_EQ(pruned, 0);
+  frame(false);
+  MapUpdateStats st = u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of);
+  EXPECT_EQ(st.points_invalidated, 0);  // pruning is not an invalidation
+  // Fourth check: the object points and the untracked static points, except `once` (one
+  // unmatched check since) and `far`, exceed miss_threshold = 3.
+  EXPECT_EQ(st.points_pruned, static_cast<int>(s.object_ids.size() + untracked.size()) - 2);
+  for (int64_t id : tracked) EXPECT_TRUE(s.map.points.count(id)) << id;
+  for (int64_t id : s.object_ids) EXPECT_FALSE(s.map.points.count(id)) << id;
+  EXPECT_TRUE(s.map.points.count(once));
+  EXPECT_TRUE(s.map.points.count(far));
+  EXPECT_EQ(s.map.keyframe(0)->point_of[0], int64_t{-1});  // erased from its keyframe too
+  for (int k = 0; k < 3; ++k) {
+    frame(false);
+    u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of);
+  }
+  EXPECT_FALSE(s.map.points.count(once));
+  EXPECT_TRUE(s.map.points.count(far));
+  // Switched off: nothing is erased.
+  Scene s2 = make_scene(1.5);
+  for (auto& [id, mp] : s2.map.points) mp.normal = -mp.p_world.normalized();
+  p.prune_unmatched = false;
+  MapUpdater off(p, intrinsics());
+  for (int k = 0; k < 8; ++k) off.update(s2.map, s2.kf_image, Pose{}, s2.cur, s2.cur_point_of);
+  EXPECT_EQ(s2.map.points.size(), s.object_ids.size() + s.static_ids.size());
 }
 
 TEST(MapUpdater, PointsRejectedByTheRobustEstimatorAreDiscardedAfterMovedThreshold) {
