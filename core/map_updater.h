@@ -161,6 +161,7 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  bool tracked_within(const Eigen::Vector2d& x, double radius) const;  // any tracked_ pixel
   // Eq. (2) searched along the keyframe's ray through X's feature over X's depth uncertainty
   // (ChangeDetectionParams::ray_search); the smallest D_c found (+inf: not computable).
   double ray_difference(Map& map, const MapPoint& p, const Keyframe& kf, int feat,
