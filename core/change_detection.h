@@ -98,6 +98,14 @@ struct ChangeDetectionParams {
   // without; rearrange: it finds moved poster points over a plain wall).
   bool count_missed = false;
   int miss_threshold = 10;
+  // The second paper's miss counter where it cannot hurt occlusion handling: a valid point that
+  // is in view, within the distance range the tracker matches it at, and looks unchanged
+  // (eq. (2) D_c <= tau_c, so it is neither occluded nor changed) but that the tracker has not
+  // matched in more than miss_threshold consecutive checks is useless to tracking (a duplicate
+  // of a tracked point, a feature the detector no longer fires on): it is erased from the map
+  // (pruned, not invalidated: nothing about the scene changed). Without it a long run keeps
+  // such points and the map grows slowly (docs/slam.md "Endurance").
+  bool prune_unmatched = true;
   int moved_threshold = 5;
   // Second paper, Sec. 3.3/4.2: optional dense optical-flow rejection of candidate points while
   // the camera is stationary.

@@ -37,6 +37,7 @@ struct MapPoint {
   Eigen::Vector3d normal{0, 0, 1};  // mean viewing direction (point -> camera)
   float min_dist = 0.f, max_dist = 1e9f;  // scale-invariance distance range (ORB levels)
   int missed = 0, moved = 0;              // second paper's counters (dynamic module)
+  int unmatched = 0;  // consecutive checks in view and unchanged but not tracked (pruning)
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 

@@ -14,6 +14,9 @@ namespace {
 constexpr int kHistogramStride = 4;
 // phi(x') is capped: Alg. 1 needs only whether a nearer point exists and where it projects.
 constexpr int kMaxNeighbours = 64;
+// A tracked feature this close (pixels at the point's keyframe scale) to an unmatched point's
+// projection makes the point a duplicate (dynamic.prune_unmatched).
+constexpr double kDuplicatePx = 3.0;
 constexpr int kMaxSelected = 20;  // ChangeDetectionParams::closest_keyframes upper bound
 }  // namespace
 
@@ -89,6 +92,23 @@ int MapUpdater::gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe
     }
   }
   return n;
+}
+
+bool MapUpdater::tracked_within(const Eigen::Vector2d& x, double radius) const {
+  const double r2 = radius * radius;
+  const int x0 = std::max(0, static_cast<int>((x.x() - radius) / cell_px_));
+  const int x1 = std::min(grid_cols_ - 1, static_cast<int>((x.x() + radius) / cell_px_));
+  const int y0 = std::max(0, static_cast<int>((x.y() - radius) / cell_px_));
+  const int y1 = std::min(grid_rows_ - 1, static_cast<int>((x.y() + radius) / cell_px_));
+  for (int cy = y0; cy <= y1; ++cy) {
+    for (int cx = x0; cx <= x1; ++cx) {
+      const int c = cy * grid_cols_ + cx;
+      for (int k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
+        if ((tracked_[cell_items_[k]].pixel - x).squaredNorm() <= r2) return true;
+      }
+    }
+  }
+  return false;
 }
 
 const Keyframe* MapUpdater::first_keyframe(Map& map, const MapPoint& p) const {
@@ -411,8 +431,9 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   tracked_ids_sorted_.clear();
   for (int i = 0; i < frame.count; ++i) {
     if (frame.point_of[i] < 0) continue;
-    const MapPoint* p = map.point(frame.point_of[i]);
+    MapPoint* p = map.point(frame.point_of[i]);
     if (p == nullptr) continue;
+    p->unmatched = 0;
     const bool flowing = st.flow_computed && keep_[i] == 0;
     if (params_.landmark_counters && !flowing) {
       counter_event(map, p->id, LandmarkEvent::kMatchedStill);
@@ -443,6 +464,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   // would invalidate a point the others still see unchanged).
   candidates_.clear();
   triggered_.clear();
+  prune_.clear();
   for (int s = 0; s < nsel; ++s) {
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
@@ -560,6 +582,19 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     if (d == PointDecision::kKeepSameAppearance) {
       confirm_.erase(c.id);
       counter_event(map, c.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
+      // Present and unoccluded, yet not tracked: counted only where the tracker would try to
+      // match it (its viewing-angle and distance gates, core/tracker.cpp match_local_map).
+      // Only where a tracked feature sits on the same pixel: X duplicates a point the tracker
+      // uses (a surface mapped twice, e.g. after relocalizing); a lone unmatched point may still
+      // be matched from another view and is kept.
+      const double dist = (cur_c - p->p_world).norm();
+      const Keyframe* kf = map.keyframe(c.kf);
+      const double r = kDuplicatePx * (kf != nullptr ? kf->features.scale[c.feat] : 1.f);
+      if (params_.prune_unmatched && p->normal.dot(c.n_xp) >= 0.5 && dist >= p->min_dist &&
+          dist <= p->max_dist && tracked_within(c.xp, r) &&
+          ++p->unmatched > params_.miss_threshold) {
+        prune_.push_back(c.id);
+      }
     }
     if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
         counter_event(map, c.id, LandmarkEvent::kMissed)) {
@@ -596,6 +631,11 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       kf->valid = false;
       ++st.keyframes_invalidated;
     }
+  }
+  for (int64_t id : prune_) {
+    map.erase_point(id);
+    confirm_.erase(id);
+    ++st.points_pruned;
   }
   return st;
 }

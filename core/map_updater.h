@@ -22,7 +22,10 @@
 //     tracked point on dense optical flow) is "moved", Alg. 1's "occluded by an untracked,
 //     i.e. moving, object" verdict is "missed"; above moved_threshold / miss_threshold the
 //     point is discarded (V(X) = 0);
-//  5. the 90% rule on every checked keyframe.
+//  5. the 90% rule on every checked keyframe;
+//  6. with `prune_unmatched`, points in view and unchanged (D_c <= tau_c) that the tracker
+//     has not matched in more than `miss_threshold` consecutive checks are erased from the map
+//     (pruned: MapUpdateStats::points_pruned; the second paper's miss counter).
 // Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
 // !valid; an observation that invalidated points publishes at once); invalid keyframes are
 // removed by the mapper. With `map_update = false` update() does nothing (Figure 9 ablation);
@@ -91,6 +94,7 @@ struct MapUpdateStats {
   int points_inconsistent = 0;     // skipped: X does not reproject onto the keyframe's feature
   int counter_discards = 0;        // of points_invalidated: by the counters
   int flow_moved = 0;              // tracked points on flowing regions
+  int points_pruned = 0;           // erased: in view, unchanged, unmatched (prune_unmatched)
   bool flow_computed = false;      // camera stationary: flow ran this frame
 };
 
@@ -157,6 +161,7 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  bool tracked_within(const Eigen::Vector2d& x, double radius) const;  // any tracked_ pixel
   // Eq. (2) searched along the keyframe's ray through X's feature over X's depth uncertainty
   // (ChangeDetectionParams::ray_search); the smallest D_c found (+inf: not computable).
   double ray_difference(Map& map, const MapPoint& p, const Keyframe& kf, int feat,
@@ -191,6 +196,7 @@ class MapUpdater {
   };
   std::vector<Candidate, Eigen::aligned_allocator<Candidate>> candidates_;
   std::vector<int> triggered_;
+  std::vector<int64_t> prune_;  // points to erase at the end of the call (prune_unmatched)
   // Consecutive change verdicts per point (confirm_checks); entries of points that became
   // invalid or were erased are purged when the table outgrows the map.
   std::unordered_map<int64_t, int> confirm_;

@@ -71,6 +71,8 @@ void Mapper::account(const MapUpdateStats& u) {
   stats_.points_invalidated += u.points_invalidated;
   stats_.keyframes_invalidated += u.keyframes_invalidated;
   stats_.points_counter_discarded += u.counter_discards;
+  stats_.points_pruned += u.points_pruned;
+  stats_.points_culled += u.points_pruned;
   link_->invalidated_points.fetch_add(u.points_invalidated, std::memory_order_relaxed);
 }
 
@@ -111,7 +113,7 @@ void Mapper::process_observation(const FrameObservation& o) {
   account(u);
   if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
   // Invalid points leave the tracker's matching index now, not at the next keyframe.
-  if (u.points_invalidated > 0 || u.keyframes_invalidated > 0) publish();
+  if (u.points_invalidated > 0 || u.keyframes_invalidated > 0 || u.points_pruned > 0) publish();
 }
 
 void Mapper::process(const KeyframeCandidate& c) {
@@ -140,7 +142,7 @@ void Mapper::process(const KeyframeCandidate& c) {
           const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
           account(u);
           if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
-          changed = u.points_invalidated > 0 || u.keyframes_invalidated > 0;
+          changed = u.points_invalidated > 0 || u.keyframes_invalidated > 0 || u.points_pruned > 0;
         }
         const int published = stats_.snapshots;
         handle_keyframe(c);

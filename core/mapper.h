@@ -56,6 +56,7 @@ struct MapperStats {
   int keyframes_replaced = 0;        // invalid keyframes removed from the map
   double update_ms_total = 0.0;      // wall time in MapUpdater::update (observations only)
   int points_counter_discarded = 0;  // of points_invalidated: by the missed/moved counters
+  int points_pruned = 0;  // of points_culled: erased by the updater (dynamic.prune_unmatched)
 };
 
 class Mapper {

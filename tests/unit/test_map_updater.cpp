@@ -137,6 +137,7 @@ ChangeDetectionParams paper_params() {
   p.landmark_counters = false;
   p.temporal_check = false;  // the paper's Algorithm 1: no evidence about what replaced X
   p.ray_search = false;
+  p.prune_unmatched = false;
   return p;
 }
 
@@ -362,6 +363,89 @@ TEST(MapUpdater, PersistentUntrackedChangeIsDiscardedByTheMissCounter) {
   EXPECT_EQ(st.counter_discards, static_cast<int>(s.object_ids.size()));
   ASSERT_EQ(rec.size(), s.object_ids.size());
   EXPECT_EQ(rec[0].cause, InvalidationCause::kMissed);
+}
+
+TEST(MapUpdater, UnchangedDuplicatesTheTrackerNeverMatchesArePruned) {
+  // The frame is the keyframe's view, unchanged: every point is in view and looks the same.
+  // Half the static points are tracked in every frame. Each of the others has a twin: another
+  // map point, 1 px away, that the tracker matches instead (a surface mapped twice). Those
+  // duplicates are erased after miss_threshold + 1 checks; a point tracked once restarts its
+  // count; a point seen from beyond the distance range the tracker matches it at is not
+  // counted; untracked points without a tracked feature near them (the object points) stay.
+  Scene s = make_scene(1.5);
+  ChangeDetectionParams p = paper_params();
+  p.histogram_threshold = 0.0;  // the unchanged frame is checked
+  p.prune_unmatched = true;
+  p.miss_threshold = 3;
+  const PinholeIntrinsics K = intrinsics();
+  std::vector<int64_t> tracked, dups, twins;
+  for (size_t i = 0; i < s.static_ids.size(); ++i) {
+    (i % 2 == 0 ? tracked : dups).push_back(s.static_ids[i]);
+  }
+  for (int64_t id : dups) {
+    const Eigen::Vector2d x = K.project(s.map.points.at(id).p_world) + Eigen::Vector2d(1, 0);
+    MapPoint mp;
+    mp.id = s.map.next_point_id++;
+    mp.p_world = K.unproject(x.x(), x.y()) * 2.0;
+    mp.first_kf = 0;
+    s.map.points.emplace(mp.id, mp);
+    twins.push_back(mp.id);
+  }
+  for (auto& [id, mp] : s.map.points) mp.normal = -mp.p_world.normalized();  // point -> camera
+  const int64_t once = dups[0];  // tracked itself in the third frame
+  const int64_t far = dups[1];   // outside its matching distance range
+  s.map.points.at(far).max_dist = 1.0f;
+  const Map map_copy = s.map;  // for the run with pruning off
+  auto frame = [&](bool with_once) {
+    std::vector<int64_t> ids = tracked;
+    ids.insert(ids.end(), twins.begin(), twins.end());
+    if (with_once) ids.push_back(once);
+    resize_features(s.cur, static_cast<int>(ids.size()));
+    s.cur_point_of = ids;
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const Eigen::Vector2d x = K.project(s.map.points.at(ids[i]).p_world);
+      s.cur.un[i] = cv::Point2f(float(x.x()), float(x.y()));
+      s.cur.kps[i].pt = s.cur.un[i];
+    }
+  };
+  MapUpdater u(p, intrinsics());
+  int pruned = 0;
+  for (int k = 0; k < 3; ++k) {
+    frame(k == 2);
+    pruned += u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of).points_pruned;
+  }
+  EXPECT_EQ(pruned, 0);
+  frame(false);
+  const size_t before = s.map.points.size();
+  MapUpdateStats st = u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of);
+  EXPECT_EQ(st.points_invalidated, 0);  // pruning is not an invalidation
+  // Fourth check: the duplicates except `once` (one unmatched check since) and `far` exceed
+  // miss_threshold = 3.
+  EXPECT_EQ(st.points_pruned, static_cast<int>(dups.size()) - 2);
+  EXPECT_EQ(s.map.points.size(), before - st.points_pruned);
+  for (int64_t id : tracked) EXPECT_TRUE(s.map.points.count(id)) << id;
+  for (int64_t id : twins) EXPECT_TRUE(s.map.points.count(id)) << id;
+  for (int64_t id : s.object_ids) EXPECT_TRUE(s.map.points.count(id)) << id;
+  EXPECT_FALSE(s.map.points.count(dups[2]));
+  EXPECT_TRUE(s.map.points.count(once));
+  EXPECT_TRUE(s.map.points.count(far));
+  // Erased from its keyframe too.
+  for (int64_t pid : s.map.keyframe(0)->point_of) EXPECT_NE(pid, dups[2]);
+  for (int k = 0; k < 3; ++k) {
+    frame(false);
+    u.update(s.map, s.kf_image, Pose{}, s.cur, s.cur_point_of);
+  }
+  EXPECT_FALSE(s.map.points.count(once));
+  EXPECT_TRUE(s.map.points.count(far));
+  // Switched off: the same frames erase nothing.
+  Map m = map_copy;
+  p.prune_unmatched = false;
+  MapUpdater off(p, intrinsics());
+  for (int k = 0; k < 8; ++k) {
+    frame(false);
+    EXPECT_EQ(off.update(m, s.kf_image, Pose{}, s.cur, s.cur_point_of).points_pruned, 0);
+  }
+  EXPECT_EQ(m.points.size(), map_copy.points.size());
 }
 
 TEST(MapUpdater, PointsRejectedByTheRobustEstimatorAreDiscardedAfterMovedThreshold) {
