@@ -170,6 +170,26 @@ bool window_touches_moved(const SynthScene& scene, const CameraModel& cam, int r
   return false;
 }
 
+// Diagnostics: largest/smallest depth of the surfaces the 11x11 window sees at `ref` (ratio).
+double window_depth_ratio(const SynthScene& scene, const CameraModel& cam, int ref,
+                          const Eigen::Vector3d& pw) {
+  const Eigen::Isometry3d& T = scene.T_world_cam.at(ref);
+  const Eigen::Vector3d pc = T.inverse() * pw;
+  if (pc.z() <= 0) return 0;
+  const double u = cam.fx * pc.x() / pc.z() + cam.cx, v = cam.fy * pc.y() / pc.z() + cam.cy;
+  double lo = 1e9, hi = 0;
+  for (int dy = -5; dy <= 5; dy += 5) {
+    for (int dx = -5; dx <= 5; dx += 5) {
+      const Eigen::Vector3d ray((u + dx - cam.cx) / cam.fx, (v + dy - cam.cy) / cam.fy, 1.0);
+      double lambda = 0;
+      if (scene.raycast(ref, T.translation(), T.linear() * ray, &lambda) == 0) continue;
+      lo = std::min(lo, lambda);
+      hi = std::max(hi, lambda);
+    }
+  }
+  return hi > 0 ? hi / lo : 0;
+}
+
 DynResult run(bool occlusion_handling, bool map_update = true,
               const std::string& scenario = "rearrange", int frame_count = kFrames) {
   SourceOptions opt;
@@ -219,8 +239,10 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     }
     for (const InvalidationRecord& rec : log) cause_of.emplace(rec.id, rec);
     for (const CheckRecord& c : checks) {
-      std::printf("[check] frame %d id %ld %s seen %d d_c %.2f nn %d\n", n, long(c.id),
-                  to_string(c.decision), int(c.seen), c.d_c, c.neighbours);
+      static const char* const kSeen[] = {"unknown", "moving", "in-front", "behind"};
+      std::printf("[check] frame %d id %ld %s seen %s d_c %.2f nn %d z %.3f z_seen %.3f\n", n,
+                  long(c.id), to_string(c.decision), kSeen[int(c.seen) & 3], c.d_c, c.neighbours,
+                  c.depth, c.depth_seen);
     }
     checks.clear();
     if (test::is_tracked(tr.state)) {
@@ -320,12 +342,23 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     const SynthPointFate f = scene.point_fate(pw, iv.ref_frame, iv.frame, kTol);
     r.invalidated_moved += f.moved;
     cause.second += f.moved;
+    const bool boundary = !f.moved && window_touches_moved(scene, cam, iv.ref_frame, iv.frame, pw);
+    const bool covered = !f.moved && !boundary && f.in_view && f.occluded &&
+                         cover_gap(scene, iv.frame, pw) < kCoverGap;
+    if (verbose) {
+      std::printf("[inv] id %ld frame %d class %s edge %.2f\n", long(kv.first), iv.frame,
+                  f.moved    ? "moved"
+                  : boundary ? "boundary"
+                  : covered  ? "covered"
+                             : "fp",
+                  window_depth_ratio(scene, cam, iv.ref_frame, pw));
+    }
     if (f.moved) continue;
-    if (window_touches_moved(scene, cam, iv.ref_frame, iv.frame, pw)) {
+    if (boundary) {
       ++r.invalidated_boundary;
       continue;
     }
-    if (f.in_view && f.occluded && cover_gap(scene, iv.frame, pw) < kCoverGap) {
+    if (covered) {
       ++r.invalidated_covered;
       continue;
     }
@@ -346,12 +379,15 @@ DynResult run(bool occlusion_handling, bool map_update = true,
       const SynthObject* oc = scene.object(f.occluder_id);
       std::printf(
           "[fp] id %ld frame %d ref %d cause %s d_c %.1f kf %d on %s occl %s err %.1f px "
-          "3d %.3f m\n",
+          "3d %.3f m dz %.3f m edge %.2f\n",
           long(kv.first), iv.frame, iv.ref_frame,
           c == cause_of.end() ? "other" : to_string(c->second.cause),
           c == cause_of.end() ? -1.0 : c->second.d_c, c == cause_of.end() ? -1 : c->second.keyframe,
           on ? on->name.c_str() : "-", f.occluded && oc ? oc->name.c_str() : "-", err,
-          (sim.apply(iv.p_slam) - pw).norm());
+          (sim.apply(iv.p_slam) - pw).norm(),
+          (seq.T_world_cam(iv.frame).inverse() * sim.apply(iv.p_slam)).z() -
+              (seq.T_world_cam(iv.frame).inverse() * pw).z(),
+          window_depth_ratio(scene, cam, iv.ref_frame, pw));
     }
     if (!f.in_view) {
       ++r.fp_out_of_view;
@@ -427,6 +463,11 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     if (!occluded) continue;
     ++r.occluded_only;
     r.occluded_only_invalidated += iv != inval.end();
+    if (verbose && iv != inval.end()) {
+      const auto c = cause_of.find(kv.first);
+      std::printf("[occl] id %ld frame %d cause %s covered %d\n", long(kv.first), iv->second.frame,
+                  c == cause_of.end() ? "other" : to_string(c->second.cause), int(covered));
+    }
     if (!covered) {
       ++r.occluded_apart;
       r.occluded_apart_invalidated += iv != inval.end();
