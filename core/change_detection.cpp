@@ -29,10 +29,6 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "require the new appearance to be static before a point is invalidated");
   v.field("require_static_evidence", require_static_evidence,
           "invalidate only when the temporal check finds a static surface at/behind the point");
-  v.field("depth_edge_check", depth_edge_check,
-          "keep a point whose window is two static layers displaced by parallax (depth edge)");
-  v.field("depth_edge_max_shift_px", depth_edge_max_shift_px, 2, kMaxLayerShift,
-          "largest parallax shift of a layer the depth-edge check tries (px)");
   v.field("temporal_max_gap_s", temporal_max_gap_s, 0.0, 10.0,
           "oldest recent frame the temporal check may use (s)");
   v.field("temporal_depth_margin", temporal_depth_margin, 0.0, 0.9,
@@ -277,120 +273,6 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   return best / unit;
 }
 
-double layered_appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
-                                     const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                                     double scale, const Eigen::Vector2d& dir, int max_shift,
-                                     int window, double min_share) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  if (keyframe_image.empty() || current_image.empty() ||
-      keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
-      current_image.depth() != CV_8U || !(scale > 0) || !std::isfinite(scale) || window < 1 ||
-      window > kMaxAppearanceWindow || max_shift < 1 || max_shift > kMaxLayerShift ||
-      !(dir.norm() > 0.5)) {
-    return kInf;
-  }
-  const Eigen::Vector2d u = dir.normalized();
-  const int h = window / 2, w = 2 * h + 1, n = w * w;
-  const int ch = keyframe_image.channels();
-  const int kx = static_cast<int>(std::lround(x.x()));
-  const int ky = static_cast<int>(std::lround(x.y()));
-  if (kx - h < 0 || ky - h < 0 || kx + h >= keyframe_image.cols || ky + h >= keyframe_image.rows) {
-    return kInf;
-  }
-  const double reach = scale * (h + 1) + max_shift + 1;
-  if (x_prime.x() - reach < 0 || x_prime.y() - reach < 0 ||
-      x_prime.x() + reach >= current_image.cols - 1 ||
-      x_prime.y() + reach >= current_image.rows - 1) {
-    return kInf;
-  }
-  // Keyframe window, zero-mean over all channels (one bias for the three, as eq. (2)).
-  float kv[3][kMaxAppearanceWindow * kMaxAppearanceWindow];
-  float kdev[kMaxAppearanceWindow * kMaxAppearanceWindow];  // per pixel, summed over channels
-  double mean = 0;
-  for (int wy = -h; wy <= h; ++wy) {
-    const uint8_t* row = keyframe_image.ptr<uint8_t>(ky + wy);
-    for (int wx = -h; wx <= h; ++wx) {
-      const int i = (wy + h) * w + (wx + h);
-      for (int c = 0; c < ch; ++c) {
-        kv[c][i] = row[(kx + wx) * ch + c];
-        mean += kv[c][i];
-      }
-    }
-  }
-  mean /= double(n) * ch;
-  double k_dev_all = 0;
-  for (int i = 0; i < n; ++i) {
-    kdev[i] = 0.f;
-    for (int c = 0; c < ch; ++c) {
-      kv[c][i] -= float(mean);
-      kdev[i] += std::fabs(kv[c][i]);
-    }
-    k_dev_all += kdev[i];
-  }
-  if (k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture
-  // Per shift s, the per-pixel residual of the normalised current window.
-  const int S = 2 * max_shift + 1;
-  float res[2 * kMaxLayerShift + 1][kMaxAppearanceWindow * kMaxAppearanceWindow];
-  float cur[3][kMaxAppearanceWindow * kMaxAppearanceWindow];
-  const double off_x = kx - x.x(), off_y = ky - x.y();
-  for (int si = 0; si < S; ++si) {
-    const double s = si - max_shift;
-    double cm = 0;
-    for (int wy = -h; wy <= h; ++wy) {
-      for (int wx = -h; wx <= h; ++wx) {
-        const int i = (wy + h) * w + (wx + h);
-        const double cx = x_prime.x() + scale * (wx + off_x) + s * u.x();
-        const double cy = x_prime.y() + scale * (wy + off_y) + s * u.y();
-        for (int c = 0; c < ch; ++c) {
-          cur[c][i] = sample_bilinear(current_image, cx, cy, c);
-          cm += cur[c][i];
-        }
-      }
-    }
-    cm /= double(n) * ch;
-    double dev = 0;
-    for (int c = 0; c < ch; ++c) {
-      for (int i = 0; i < n; ++i) dev += std::fabs(cur[c][i] - cm);
-    }
-    double g = dev > 1e-6 ? k_dev_all / dev : kMaxAppearanceGain;
-    g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
-    for (int i = 0; i < n; ++i) {
-      float r = 0.f;
-      for (int c = 0; c < ch; ++c) r += std::fabs(kv[c][i] - float(g * (cur[c][i] - cm)));
-      res[si][i] = r;
-    }
-  }
-  // Best pair of layers: smallest total residual, each layer at least min_share of the pixels.
-  const int min_pixels = static_cast<int>(std::ceil(std::clamp(min_share, 0.0, 0.5) * n));
-  double best_total = kInf, best_score = kInf;
-  for (int a = 0; a < S; ++a) {
-    for (int b = a + 2; b < S; ++b) {
-      double total = 0, res_a = 0, res_b = 0, dev_a = 0, dev_b = 0;
-      int na = 0;
-      for (int i = 0; i < n; ++i) {
-        if (res[a][i] <= res[b][i]) {
-          res_a += res[a][i];
-          dev_a += kdev[i];
-          ++na;
-        } else {
-          res_b += res[b][i];
-          dev_b += kdev[i];
-        }
-      }
-      total = res_a + res_b;
-      if (na < min_pixels || n - na < min_pixels || total >= best_total) continue;
-      best_total = total;
-      // A layer without contrast of its own says nothing: its residual counts against the
-      // window's mean contrast instead.
-      const double unit = k_dev_all / n;
-      const double ra = res_a / std::max(dev_a, unit * na),
-                   rb = res_b / std::max(dev_b, unit * (n - na));
-      best_score = std::max(ra, rb);
-    }
-  }
-  return best_score;
-}
-
 const char* to_string(PointDecision d) {
   switch (d) {
     case PointDecision::kKeepViewAngle:
@@ -413,8 +295,6 @@ const char* to_string(PointDecision d) {
       return "invalid:static-change";
     case PointDecision::kKeepUndecided:
       return "keep:undecided";
-    case PointDecision::kKeepDepthEdge:
-      return "keep:depth-edge";
   }
   return "unknown";
 }

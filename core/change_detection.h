@@ -72,20 +72,6 @@ struct ChangeDetectionParams {
   // occluder's silhouette, where Alg. 1 sees only the tracked background) at a small recall
   // cost (docs/slam.md, "Map updating").
   bool require_static_evidence = true;
-  // A window on a static depth edge (a feature formed by a foreground silhouette against the
-  // background: a T-junction) changes with the viewpoint although nothing moved: parallax
-  // slides the background behind the foreground's edge, the whole window no longer matches,
-  // and the point, triangulated at neither surface, projects off both. Before such a point is
-  // called changed, the keyframe window is explained as two layers, each displaced along the
-  // epipolar line by its own shift (up to depth_edge_max_shift_px), every pixel taking the
-  // better one (see layered_appearance_difference()); when each layer holds at least a quarter
-  // of the window and matches within tau_c on its own pixels, all of X's appearance is still
-  // there, only rearranged: kept (kKeepDepthEdge). A surface that moved or vanished leaves a
-  // part of the window that no static shift explains. Measured on synth:rearrange: the
-  // largest class of false invalidations (windows straddling a depth ratio >= 1.3, the point
-  // 0.5-1 m in front of the surface its ray hits); docs/slam.md, "Map updating".
-  bool depth_edge_check = true;
-  int depth_edge_max_shift_px = 12;
   double temporal_max_gap_s = 1.0;
   double temporal_depth_margin = 0.1;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
@@ -188,22 +174,6 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
                              double scale, int window, int search_d, bool normalise = false,
                              double accept = -std::numeric_limits<double>::infinity());
 
-// Two-layer eq. (2) (dynamic.depth_edge_check): the keyframe window at x against the current
-// image around x' (warped by `scale` as in appearance_difference()), each pixel explained by
-// the better of two shifts s1, s2 of the window along the unit image direction `dir` (the
-// epipolar line: parallax moves surfaces at different depths only along it), |s| <= max_shift
-// px in steps of 1 px, |s1 - s2| >= 2. Per shift the current window is bias/gain-normalised as
-// in appearance_difference() (normalise = true). Among the pairs whose smaller layer holds
-// at least min_share of the pixels, the one with the smallest total residual is taken; the
-// result is the worse layer's relative residual (its residual over its own keyframe pixels'
-// contrast), i.e. comparable with tau_c_relative. +inf when not computable (window outside an
-// image, flat keyframe window, max_shift beyond kMaxLayerShift). No allocation.
-constexpr int kMaxLayerShift = 16;
-double layered_appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
-                                     const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
-                                     double scale, const Eigen::Vector2d& dir, int max_shift,
-                                     int window, double min_share = 0.25);
-
 // A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
 // current camera, and X_y's projection into the keyframe where X first appeared.
 struct NeighbourPoint {
@@ -224,7 +194,6 @@ enum class PointDecision : uint8_t {
   kKeepNotChecked,              // window outside the image or no appearance available
   kInvalidStaticChange,         // phi(x') empty but the new appearance at x' is static
   kKeepUndecided,               // require_static_evidence: no static surface found at/behind X
-  kKeepDepthEdge,  // depth_edge_check: the window is two static layers displaced by parallax
 };
 
 // What the current frame shows at x' where X looks changed (temporal_check): compared with

@@ -249,30 +249,6 @@ double MapUpdater::ray_difference(Map& map, const MapPoint& p, const Keyframe& k
   return best;
 }
 
-double MapUpdater::depth_edge_explained(const MapPoint& p, const Keyframe& kf, int feat,
-                                        const Eigen::Vector2d& x_prime, const cv::Mat& image,
-                                        const Pose& T_cam_world) const {
-  const Eigen::Vector3d pk = kf.T_cam_world * p.p_world;
-  const Eigen::Vector3d pc = T_cam_world * p.p_world;
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  if (pk.z() <= 1e-9 || pc.z() <= 1e-9) return kInf;
-  // The epipolar direction at x': the keyframe ray through X's feature, projected into the
-  // current view at 0.8 and 1.25 times X's keyframe depth.
-  const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
-  const Eigen::Vector3d bearing =
-      kf.T_cam_world.R.transpose() * K_.unproject(kf.features.un[feat].x, kf.features.un[feat].y);
-  const Eigen::Vector3d a = T_cam_world * (kf_c + bearing * (0.8 * pk.z()));
-  const Eigen::Vector3d b = T_cam_world * (kf_c + bearing * (1.25 * pk.z()));
-  if (a.z() <= 1e-9 || b.z() <= 1e-9) return kInf;
-  const Eigen::Vector2d dir = K_.project(b) - K_.project(a);
-  if (dir.norm() < 0.5) return kInf;  // no parallax: nothing can have slid
-  const cv::Point2f& kp = kf.features.kps[feat].pt;
-  const double d = layered_appearance_difference(kf.image, Eigen::Vector2d(kp.x, kp.y), image,
-                                                 x_prime, pk.z() / pc.z(), dir,
-                                                 params_.depth_edge_max_shift_px, params_.window);
-  return d;
-}
-
 void MapUpdater::remember(const UpdateFrame& f) {
   if (!params_.temporal_check || f.stamp_ns < 0) return;
   Recent& r = history_[history_head_];
@@ -567,23 +543,12 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       seen =
           new_surface(p->p_world, c.xp, c.depth, image, T_cam_world, frame.stamp_ns, &depth_seen);
     }
-    double layered = -1;
-    PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, d_c, c.depth, x_first,
-                                            neighbours_.data(), nn, seen);
-    if (is_invalidation(d) && params_.depth_edge_check) {
-      // Before calling X changed: is its keyframe window two static layers that parallax
-      // displaced against each other (X on a depth edge)? Then nothing of it is gone.
-      const Keyframe* kf = map.keyframe(c.kf);
-      if (kf != nullptr) {
-        layered = depth_edge_explained(*p, *kf, c.feat, c.xp, image, T_cam_world);
-        if (layered <= params_.tau_c) d = PointDecision::kKeepDepthEdge;
-      }
-    }
+    const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, d_c, c.depth, x_first,
+                                                  neighbours_.data(), nn, seen);
     ++st.points_checked;
     ++st.decisions[static_cast<int>(d)];
     if (check_log_ != nullptr)
-      check_log_->push_back(
-          {c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen), float(layered)});
+      check_log_->push_back({c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen)});
     if (is_invalidation(d)) {
       // A change is a lasting state; a verdict caused by something passing (a moving object's
       // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive

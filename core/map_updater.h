@@ -86,7 +86,7 @@ struct MapUpdateStats {
   int points_checked = 0;          // points run through Algorithm 1
   int points_invalidated = 0;      // V(X) set to 0 in this call
   int keyframes_invalidated = 0;   // keyframes newly marked invalid in this call
-  int decisions[11] = {};          // per PointDecision value
+  int decisions[10] = {};          // per PointDecision value
   int points_not_established = 0;  // skipped: fewer than min_observations
   int points_inconsistent = 0;     // skipped: X does not reproject onto the keyframe's feature
   int counter_discards = 0;        // of points_invalidated: by the counters
@@ -121,7 +121,6 @@ struct CheckRecord {
   int neighbours = 0;      // |phi(x')|
   float depth = 0.f;       // z_X in the current camera
   float depth_seen = 0.f;  // temporal check: depth of what x' shows (0: none found)
-  float layered = -1.f;    // depth-edge check's two-layer score (-1: not computed)
 };
 
 class MapUpdater {
@@ -164,11 +163,6 @@ class MapUpdater {
   // (ChangeDetectionParams::ray_search); the smallest D_c found (+inf: not computable).
   double ray_difference(Map& map, const MapPoint& p, const Keyframe& kf, int feat,
                         const cv::Mat& image, const Pose& T_cam_world) const;
-  // dynamic.depth_edge_check: the keyframe window of X explained at x' by two layers shifted
-  // along the epipolar line (layered_appearance_difference() within tau_c).
-  double depth_edge_explained(const MapPoint& p, const Keyframe& kf, int feat,
-                              const Eigen::Vector2d& x_prime, const cv::Mat& image,
-                              const Pose& T_cam_world) const;
   bool counter_event(Map& map, int64_t id, LandmarkEvent e);
   void flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
                    std::vector<int64_t>* invalidated);

@@ -240,9 +240,9 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     for (const InvalidationRecord& rec : log) cause_of.emplace(rec.id, rec);
     for (const CheckRecord& c : checks) {
       static const char* const kSeen[] = {"unknown", "moving", "in-front", "behind"};
-      std::printf("[check] frame %d id %ld %s seen %s d_c %.2f nn %d z %.3f z_seen %.3f lay %.3f\n",
-                  n, long(c.id), to_string(c.decision), kSeen[int(c.seen) & 3], c.d_c, c.neighbours,
-                  c.depth, c.depth_seen, c.layered);
+      std::printf("[check] frame %d id %ld %s seen %s d_c %.2f nn %d z %.3f z_seen %.3f\n", n,
+                  long(c.id), to_string(c.decision), kSeen[int(c.seen) & 3], c.d_c, c.neighbours,
+                  c.depth, c.depth_seen);
     }
     checks.clear();
     if (test::is_tracked(tr.state)) {
