@@ -280,7 +280,8 @@ void MapUpdater::remember(const UpdateFrame& f) {
 
 NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                                    double depth, const cv::Mat& image, const Pose& T_cam_world,
-                                   int64_t stamp_ns) const {
+                                   int64_t stamp_ns, double* depth_seen) const {
+  if (depth_seen != nullptr) *depth_seen = 0.0;
   if (!params_.temporal_check || stamp_ns < 0) return NewSurface::kUnknown;
   const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
   auto usable = [&](const Recent& r) {
@@ -365,6 +366,7 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
                                              best_z / qm.z(), params_.window, params_.search_d,
                                              params_.normalise_appearance, params_.tau_c);
   if (!(d_mid <= params_.tau_c)) return NewSurface::kUnknown;
+  if (depth_seen != nullptr) *depth_seen = best_z;
   // In front: the match lies clearly (2 px) on the near side of X's depth. At or behind: only
   // when the baseline separates X's depth from the "in front" boundary by 2 px.
   if (best_z < z_front) {
@@ -557,14 +559,18 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     }
     int nn = 0;
     NewSurface seen = NewSurface::kUnknown;
+    double depth_seen = 0.0;
     if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
       nn = gather_neighbours(c.xp, first);
-      seen = new_surface(p->p_world, c.xp, c.depth, image, T_cam_world, frame.stamp_ns);
+      seen =
+          new_surface(p->p_world, c.xp, c.depth, image, T_cam_world, frame.stamp_ns, &depth_seen);
     }
     const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, d_c, c.depth, x_first,
                                                   neighbours_.data(), nn, seen);
     ++st.points_checked;
     ++st.decisions[static_cast<int>(d)];
+    if (check_log_ != nullptr)
+      check_log_->push_back({c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen)});
     if (is_invalidation(d)) {
       // A change is a lasting state; a verdict caused by something passing (a moving object's
       // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive

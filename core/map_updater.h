@@ -121,8 +121,10 @@ struct CheckRecord {
   int64_t id = -1;
   PointDecision decision = PointDecision::kKeepNotChecked;
   NewSurface seen = NewSurface::kUnknown;
-  float d_c = 0.f;     // eq. (2) after the ray search
-  int neighbours = 0;  // |phi(x')|
+  float d_c = 0.f;         // eq. (2) after the ray search
+  int neighbours = 0;      // |phi(x')|
+  float depth = 0.f;       // z_X in the current camera
+  float depth_seen = 0.f;  // temporal check: depth of what x' shows (0: none found)
 };
 
 class MapUpdater {
@@ -210,7 +212,7 @@ class MapUpdater {
   };
   NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                          double depth, const cv::Mat& image, const Pose& T_cam_world,
-                         int64_t stamp_ns) const;
+                         int64_t stamp_ns, double* depth_seen = nullptr) const;
   void remember(const UpdateFrame& f);
   Recent history_[kHistory];
   int history_head_ = 0;
