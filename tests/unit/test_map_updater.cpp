@@ -186,6 +186,30 @@ TEST(MapUpdater, SurfaceGoneWithBackgroundTrackedBehindInvalidates) {
   for (int64_t id : s.cur_point_of) EXPECT_TRUE(s.map.points.at(id).valid);
 }
 
+TEST(MapUpdater, CheckLogHoldsOneRecordPerVerdict) {
+  // Diagnostics (MapUpdater::set_check_log): one record per Algorithm 1 verdict, agreeing
+  // with the call's decision counts; nothing is logged without a log.
+  Scene s = make_scene(1.5);
+  track_neighbours(s, 3.0);
+  std::vector<CheckRecord> log;
+  MapUpdater u(paper_params(), intrinsics());
+  u.set_check_log(&log);
+  const MapUpdateStats st =
+      u.update(s.map, changed_image(s.kf_image), Pose{}, s.cur, s.cur_point_of);
+  ASSERT_EQ(static_cast<int>(log.size()), st.points_checked);
+  int invalid = 0;
+  for (const CheckRecord& r : log) {
+    EXPECT_TRUE(s.map.points.count(r.id)) << r.id;
+    EXPECT_GT(r.depth, 0.f);
+    invalid += r.decision == PointDecision::kInvalidNothingInFront;
+  }
+  EXPECT_EQ(invalid, st.decisions[int(PointDecision::kInvalidNothingInFront)]);
+  EXPECT_EQ(invalid, static_cast<int>(s.object_ids.size()));
+  u.set_check_log(nullptr);
+  u.update(s.map, changed_image(s.kf_image), Pose{}, s.cur, s.cur_point_of);
+  EXPECT_EQ(static_cast<int>(log.size()), st.points_checked);
+}
+
 TEST(MapUpdater, OccludedByUntrackedMovingObjectIsKept) {
   // Nothing is tracked where the appearance changed: a moving object covers the points.
   Scene s = make_scene(1.5);
