@@ -48,7 +48,7 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "miss counter on Alg. 1's untracked-occluder verdict (needs landmark_counters)");
   v.field("miss_threshold", miss_threshold, 1, 10000, "missed count that discards a landmark");
   v.field("prune_unmatched", prune_unmatched,
-          "erase points in view and unchanged but unmatched for miss_threshold checks");
+          "erase unmatched duplicates of tracked points after miss_threshold checks");
   v.field("moved_threshold", moved_threshold, 1, 10000, "moved count that discards a landmark");
   v.field("flow_rejection", flow_rejection, "optical-flow rejection while stationary");
   v.field("flow_threshold_px", flow_threshold_px, 0.0, 100.0, "flow magnitude threshold");

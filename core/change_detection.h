@@ -99,12 +99,14 @@ struct ChangeDetectionParams {
   bool count_missed = false;
   int miss_threshold = 10;
   // The second paper's miss counter where it cannot hurt occlusion handling: a valid point that
-  // is in view, within the distance range the tracker matches it at, and looks unchanged
-  // (eq. (2) D_c <= tau_c, so it is neither occluded nor changed) but that the tracker has not
-  // matched in more than miss_threshold consecutive checks is useless to tracking (a duplicate
-  // of a tracked point, a feature the detector no longer fires on): it is erased from the map
-  // (pruned, not invalidated: nothing about the scene changed). Without it a long run keeps
-  // such points and the map grows slowly (docs/slam.md "Endurance").
+  // is in view, within the distance range the tracker matches it at, looks unchanged (eq. (2)
+  // D_c <= tau_c, so it is neither occluded nor changed) and has a tracked feature within 3 px
+  // of its projection, yet is not matched itself, duplicates a point the tracker uses (a
+  // surface mapped twice, e.g. after relocalizing). After more than miss_threshold such checks
+  // in a row it is erased from the map (pruned, not invalidated: nothing about the scene
+  // changed). Without it a long run keeps the copies and the map grows slowly; without the
+  // duplicate condition it also erases lone background points the tracker matches only now
+  // and then (docs/slam.md "Endurance" and deviations table).
   bool prune_unmatched = true;
   int moved_threshold = 5;
   // Second paper, Sec. 3.3/4.2: optional dense optical-flow rejection of candidate points while
