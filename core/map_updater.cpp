@@ -64,37 +64,8 @@ void MapUpdater::build_grid(int width, int height) {
   }
 }
 
-int MapUpdater::gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf) {
-  const double r1_2 = params_.r1 * params_.r1;
-  const int x0 = std::max(0, static_cast<int>((x_prime.x() - params_.r1) / cell_px_));
-  const int x1 = std::min(grid_cols_ - 1, static_cast<int>((x_prime.x() + params_.r1) / cell_px_));
-  const int y0 = std::max(0, static_cast<int>((x_prime.y() - params_.r1) / cell_px_));
-  const int y1 = std::min(grid_rows_ - 1, static_cast<int>((x_prime.y() + params_.r1) / cell_px_));
-  int n = 0;
-  for (int cy = y0; cy <= y1; ++cy) {
-    for (int cx = x0; cx <= x1; ++cx) {
-      const int c = cy * grid_cols_ + cx;
-      for (int k = cell_start_[c]; k < cell_start_[c + 1] && n < kMaxNeighbours; ++k) {
-        const Tracked& t = tracked_[cell_items_[k]];
-        if ((t.pixel - x_prime).squaredNorm() > r1_2) continue;
-        NeighbourPoint& nb = neighbours_[n++];
-        nb.pixel = t.pixel;
-        nb.depth_current = t.depth;
-        nb.in_first_keyframe = false;
-        if (first_kf != nullptr) {
-          const Eigen::Vector3d pc = first_kf->T_cam_world * t.p_world;
-          if (pc.z() > 1e-9) {
-            nb.pixel_in_first_keyframe = K_.project(pc);
-            nb.in_first_keyframe = true;
-          }
-        }
-      }
-    }
-  }
-  return n;
-}
-
-bool MapUpdater::tracked_within(const Eigen::Vector2d& x, double radius) const {
+template <class F>
+void MapUpdater::for_each_tracked_within(const Eigen::Vector2d& x, double radius, F&& f) const {
   const double r2 = radius * radius;
   const int x0 = std::max(0, static_cast<int>((x.x() - radius) / cell_px_));
   const int x1 = std::min(grid_cols_ - 1, static_cast<int>((x.x() + radius) / cell_px_));
@@ -104,11 +75,39 @@ bool MapUpdater::tracked_within(const Eigen::Vector2d& x, double radius) const {
     for (int cx = x0; cx <= x1; ++cx) {
       const int c = cy * grid_cols_ + cx;
       for (int k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
-        if ((tracked_[cell_items_[k]].pixel - x).squaredNorm() <= r2) return true;
+        const Tracked& t = tracked_[cell_items_[k]];
+        if ((t.pixel - x).squaredNorm() <= r2 && !f(t)) return;
       }
     }
   }
-  return false;
+}
+
+int MapUpdater::gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf) {
+  int n = 0;
+  for_each_tracked_within(x_prime, params_.r1, [&](const Tracked& t) {
+    NeighbourPoint& nb = neighbours_[n++];
+    nb.pixel = t.pixel;
+    nb.depth_current = t.depth;
+    nb.in_first_keyframe = false;
+    if (first_kf != nullptr) {
+      const Eigen::Vector3d pc = first_kf->T_cam_world * t.p_world;
+      if (pc.z() > 1e-9) {
+        nb.pixel_in_first_keyframe = K_.project(pc);
+        nb.in_first_keyframe = true;
+      }
+    }
+    return n < kMaxNeighbours;
+  });
+  return n;
+}
+
+bool MapUpdater::tracked_within(const Eigen::Vector2d& x, double radius) const {
+  bool found = false;
+  for_each_tracked_within(x, radius, [&](const Tracked&) {
+    found = true;
+    return false;  // one is enough
+  });
+  return found;
 }
 
 const Keyframe* MapUpdater::first_keyframe(Map& map, const MapPoint& p) const {

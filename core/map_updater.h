@@ -23,8 +23,9 @@
 //     i.e. moving, object" verdict is "missed"; above moved_threshold / miss_threshold the
 //     point is discarded (V(X) = 0);
 //  5. the 90% rule on every checked keyframe;
-//  6. with `prune_unmatched`, points in view and unchanged (D_c <= tau_c) that the tracker
-//     has not matched in more than `miss_threshold` consecutive checks are erased from the map
+//  6. with `prune_unmatched`, points in view and unchanged (D_c <= tau_c) that are not tracked
+//     while a tracked feature lies within 3 px of their projection (duplicates of a point the
+//     tracker uses), in more than `miss_threshold` consecutive checks, are erased from the map
 //     (pruned: MapUpdateStats::points_pruned; the second paper's miss counter).
 // Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
 // !valid; an observation that invalidated points publishes at once); invalid keyframes are
@@ -94,8 +95,12 @@ struct MapUpdateStats {
   int points_inconsistent = 0;     // skipped: X does not reproject onto the keyframe's feature
   int counter_discards = 0;        // of points_invalidated: by the counters
   int flow_moved = 0;              // tracked points on flowing regions
-  int points_pruned = 0;           // erased: in view, unchanged, unmatched (prune_unmatched)
+  int points_pruned = 0;           // erased: unmatched duplicates (prune_unmatched)
   bool flow_computed = false;      // camera stationary: flow ran this frame
+  // The call changed what the tracker's matching index must hold (the mapper publishes).
+  bool map_changed() const {
+    return points_invalidated > 0 || keyframes_invalidated > 0 || points_pruned > 0;
+  }
 };
 
 // Why a point was invalidated (tests and diagnostics): an Algorithm 1 decision or a counter.
@@ -163,6 +168,10 @@ class MapUpdater {
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
   const Keyframe* first_keyframe(Map& map, const MapPoint& p) const;
+  // Calls f(const Tracked&) for each tracked_ point within `radius` px of x (grid of
+  // build_grid) until f returns false.
+  template <class F>
+  void for_each_tracked_within(const Eigen::Vector2d& x, double radius, F&& f) const;
   bool tracked_within(const Eigen::Vector2d& x, double radius) const;  // any tracked_ pixel
   // Eq. (2) searched along the keyframe's ray through X's feature over X's depth uncertainty
   // (ChangeDetectionParams::ray_search); the smallest D_c found (+inf: not computable).

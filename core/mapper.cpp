@@ -113,7 +113,7 @@ void Mapper::process_observation(const FrameObservation& o) {
   account(u);
   if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
   // Invalid points leave the tracker's matching index now, not at the next keyframe.
-  if (u.points_invalidated > 0 || u.keyframes_invalidated > 0 || u.points_pruned > 0) publish();
+  if (u.map_changed()) publish();
 }
 
 void Mapper::process(const KeyframeCandidate& c) {
@@ -142,7 +142,7 @@ void Mapper::process(const KeyframeCandidate& c) {
           const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
           account(u);
           if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
-          changed = u.points_invalidated > 0 || u.keyframes_invalidated > 0 || u.points_pruned > 0;
+          changed = u.map_changed();
         }
         const int published = stats_.snapshots;
         handle_keyframe(c);
