@@ -9,6 +9,8 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
   v.field("map_update", map_update, "online 3D point and keyframe updating (Sec. 4)");
   v.field("occlusion_handling", occlusion_handling, "Algorithm 1 occlusion handling");
   v.field("closest_keyframes", closest_keyframes, 1, 20, "keyframes checked per frame");
+  v.field("check_all_in_view", check_all_in_view,
+          "also check points in view held by no selected keyframe (nearest observing keyframe)");
   v.field("keyframe_view_angle_deg", keyframe_view_angle_deg, 1.0, 180.0,
           "max optical-axis angle of a checked keyframe");
   v.field("histogram_threshold", histogram_threshold, 0.0, 10.0,

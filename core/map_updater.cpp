@@ -466,6 +466,52 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   candidates_.clear();
   triggered_.clear();
   prune_.clear();
+  // A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
+  // becomes a candidate, with eq. (2) against kf where the view test lets Alg. 1 reach it.
+  auto add_candidate = [&](Keyframe& kf, int i, MapPoint& p) {
+    const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
+    if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
+      return;  // observed in this frame: present
+    }
+    const Eigen::Vector3d pc = T_cam_world * p.p_world;
+    if (pc.z() <= 1e-9) return;
+    const Eigen::Vector2d xp = K_.project(pc);
+    if (xp.x() < h || xp.y() < h || xp.x() >= image.cols - h || xp.y() >= image.rows - h) {
+      return;  // not in the current view
+    }
+    if (p.obs.size() < min_obs) {
+      ++st.points_not_established;
+      return;
+    }
+    const Eigen::Vector3d pk = kf.T_cam_world * p.p_world;
+    if (pk.z() <= 1e-9) return;
+    // The reference view must agree with the point: X reprojects onto the keyframe's feature
+    // (chi2 95% for 2 dof at the feature's scale, the mapper's own triangulation gate);
+    // otherwise X or that keyframe's pose is off and eq. (2) would compare other pixels.
+    const Eigen::Vector2d un(kf.features.un[i].x, kf.features.un[i].y);
+    const double sig = kf.features.scale[i];
+    if ((K_.project(pk) - un).squaredNorm() > 5.991 * sig * sig) {
+      ++st.points_inconsistent;
+      return;
+    }
+    Candidate c;
+    c.id = p.id;
+    c.kf = kf.id;
+    c.feat = i;
+    c.n_x = (kf_c - p.p_world).normalized();
+    c.n_xp = (cur_c - p.p_world).normalized();
+    c.xp = xp;
+    c.depth = pc.z();
+    c.d_c = std::numeric_limits<double>::infinity();
+    // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
+    if (c.n_x.dot(c.n_xp) >= params_.tau_n) {
+      const cv::Point2f& kp = kf.features.kps[i].pt;
+      c.d_c = appearance_difference(kf.image, Eigen::Vector2d(kp.x, kp.y), image, xp,
+                                    pk.z() / pc.z(), params_.window, params_.search_d,
+                                    params_.normalise_appearance, params_.tau_c);
+    }
+    candidates_.push_back(c);
+  };
   for (int s = 0; s < nsel; ++s) {
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
@@ -477,54 +523,67 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     }
     ++st.keyframes_triggered;
     triggered_.push_back(kf->id);
-    const Eigen::Vector3d kf_c = kf->T_cam_world.centre();
     const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
     for (int i = 0; i < kn; ++i) {
       const int64_t pid = kf->point_of[i];
       if (pid < 0) continue;
       MapPoint* p = map.point(pid);
       if (p == nullptr || !p->valid) continue;
-      if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), pid)) {
-        continue;  // observed in this frame: present
+      add_candidate(*kf, i, *p);
+    }
+  }
+  if (params_.check_all_in_view) {
+    // Option: the valid points in view that none of the selected keyframes holds, each
+    // against its own nearest observing keyframe within the pre-selection's view angle. The
+    // paper checks the selected keyframes' points only: where the camera sees a place from a
+    // new viewpoint, the closest keyframes are newer ones that never saw X, and a change there
+    // (a box removed after the robot passed) would never be checked. Off by default: the points no
+    // nearby keyframe holds are also those a static surface hides from here, and Alg. 1 then
+    // invalidates more occluded points (docs/slam.md).
+    covered_.clear();
+    for (const Candidate& c : candidates_) covered_.push_back(c.id);
+    std::sort(covered_.begin(), covered_.end());
+    const double min_cos = std::cos(params_.keyframe_view_angle_deg * M_PI / 180.0);
+    for (auto& kv : map.points) {
+      MapPoint& p = kv.second;
+      if (!p.valid || std::binary_search(covered_.begin(), covered_.end(), p.id) ||
+          std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
+        continue;
       }
-      const Eigen::Vector3d pc = T_cam_world * p->p_world;
+      const Eigen::Vector3d pc = T_cam_world * p.p_world;
       if (pc.z() <= 1e-9) continue;
       const Eigen::Vector2d xp = K_.project(pc);
       if (xp.x() < h || xp.y() < h || xp.x() >= image.cols - h || xp.y() >= image.rows - h) {
-        continue;  // not in the current view
-      }
-      if (p->obs.size() < min_obs) {
-        ++st.points_not_established;
         continue;
       }
-      const Eigen::Vector3d pk = kf->T_cam_world * p->p_world;
-      if (pk.z() <= 1e-9) continue;
-      // The reference view must agree with the point: X reprojects onto the keyframe's feature
-      // (chi2 95% for 2 dof at the feature's scale, the mapper's own triangulation gate);
-      // otherwise X or that keyframe's pose is off and eq. (2) would compare other pixels.
-      const Eigen::Vector2d un(kf->features.un[i].x, kf->features.un[i].y);
-      const double sig = kf->features.scale[i];
-      if ((K_.project(pk) - un).squaredNorm() > 5.991 * sig * sig) {
-        ++st.points_inconsistent;
+      Keyframe* ref = nullptr;
+      int feat = -1;
+      double best_d = std::numeric_limits<double>::infinity();
+      for (const Observation& o : p.obs) {
+        Keyframe* kf = map.keyframe(o.kf);
+        if (kf == nullptr || !kf->valid || kf->image.empty() ||
+            kf->image.channels() != image.channels() ||
+            Eigen::Vector3d(kf->T_cam_world.R.row(2).transpose()).dot(cur_z) < min_cos) {
+          continue;
+        }
+        const double d = (kf->T_cam_world.centre() - cur_c).squaredNorm();
+        if (d < best_d) {
+          best_d = d;
+          ref = kf;
+          feat = o.feat;
+        }
+      }
+      if (ref == nullptr || feat < 0 || feat >= ref->features.count) continue;
+      const ColorHistogram& kh = keyframe_histogram(*ref);
+      if (!kh.valid || (params_.histogram_threshold > 0 &&
+                        histogram_difference(kh, current_hist_) <= params_.histogram_threshold)) {
         continue;
       }
-      Candidate c;
-      c.id = pid;
-      c.kf = kf->id;
-      c.feat = i;
-      c.n_x = (kf_c - p->p_world).normalized();
-      c.n_xp = (cur_c - p->p_world).normalized();
-      c.xp = xp;
-      c.depth = pc.z();
-      c.d_c = std::numeric_limits<double>::infinity();
-      // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
-      if (c.n_x.dot(c.n_xp) >= params_.tau_n) {
-        const cv::Point2f& kp = kf->features.kps[i].pt;
-        c.d_c = appearance_difference(kf->image, Eigen::Vector2d(kp.x, kp.y), image, xp,
-                                      pk.z() / pc.z(), params_.window, params_.search_d,
-                                      params_.normalise_appearance, params_.tau_c);
+      if (std::find(triggered_.begin(), triggered_.end(), ref->id) == triggered_.end()) {
+        triggered_.push_back(ref->id);
       }
-      candidates_.push_back(c);
+      ++st.points_unselected;
+      add_candidate(*ref, feat, p);
     }
   }
   // Pass 2: per point, the best reference (view test passed and smallest D_c first).

@@ -93,6 +93,7 @@ struct MapUpdateStats {
   int decisions[10] = {};          // per PointDecision value
   int points_not_established = 0;  // skipped: fewer than min_observations
   int points_inconsistent = 0;     // skipped: X does not reproject onto the keyframe's feature
+  int points_unselected = 0;       // in view, held by no selected keyframe (check_all_in_view)
   int counter_discards = 0;        // of points_invalidated: by the counters
   int flow_moved = 0;              // tracked points on flowing regions
   int points_pruned = 0;           // erased: unmatched duplicates (prune_unmatched)
@@ -207,7 +208,8 @@ class MapUpdater {
   };
   std::vector<Candidate, Eigen::aligned_allocator<Candidate>> candidates_;
   std::vector<int> triggered_;
-  std::vector<int64_t> prune_;  // points to erase at the end of the call (prune_unmatched)
+  std::vector<int64_t> covered_;  // ids of the selected keyframes' candidates (sorted)
+  std::vector<int64_t> prune_;    // points to erase at the end of the call (prune_unmatched)
   // Consecutive change verdicts per point (confirm_checks); entries of points that became
   // invalid or were erased are purged when the table outgrows the map.
   std::unordered_map<int64_t, int> confirm_;

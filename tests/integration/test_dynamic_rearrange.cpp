@@ -46,7 +46,9 @@
 // RDSLAM_TEST_VERBOSE=1 prints every Algorithm 1 verdict ([check]), every invalidation with its
 // ground-truth class and the depth ratio its window spans at the reference frame ([inv]), the
 // false positives with their situation and the map point's signed depth error ([fp]), the
-// occluded-only points invalidated ([occl]) and the misses ([miss]).
+// occluded-only points invalidated ([occl]) and the misses ([miss], with the point's 3D and
+// depth error before the change and at the end). RDSLAM_TEST_SEED=N runs seed N of the scene
+// (diagnostics: the bars are asserted on the default seed).
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -220,9 +222,12 @@ double window_depth_ratio(const SynthScene& scene, const CameraModel& cam, int r
 DynResult run(bool occlusion_handling, bool map_update = true,
               const std::string& scenario = "rearrange", int frame_count = kFrames) {
   SourceOptions opt;
-  std::unique_ptr<FrameSource> src = open_synth_source(scenario, opt, frame_count);
+  // RDSLAM_TEST_SEED: another seed of the scenario (diagnostics; the bars hold for the default).
+  const char* seed_env = std::getenv("RDSLAM_TEST_SEED");
+  const int64_t seed = seed_env != nullptr ? std::atoll(seed_env) : -1;
+  std::unique_ptr<FrameSource> src = open_synth_source(scenario, opt, frame_count, seed);
   const CameraModel cam = *src->camera();
-  SynthSequence seq(scenario, frame_count);
+  SynthSequence seq(scenario, frame_count, seed);
   SlamParams params = test::params_from_env();
   params.dynamic.map_update = map_update;
   params.dynamic.occlusion_handling = occlusion_handling;
@@ -248,6 +253,7 @@ DynResult run(bool occlusion_handling, bool map_update = true,
   // Per change episode, the points valid just before it started (id -> (ref, p)).
   const std::vector<Episode> episodes = change_episodes(seq.scene(), frame_count);
   std::vector<std::unordered_map<int64_t, std::pair<int, Eigen::Vector3d>>> before(episodes.size());
+  std::vector<std::unordered_map<int64_t, Eigen::Vector3d>> before_slam(episodes.size());
   int first_change = std::numeric_limits<int>::max();
   for (const Episode& e : episodes) first_change = std::min(first_change, e.start);
   std::unordered_map<int64_t, int> erased_at;  // watched id -> first frame it was gone
@@ -341,6 +347,7 @@ DynResult run(bool occlusion_handling, bool map_update = true,
       if (n != episodes[e].start - 1) continue;
       for (const auto& kv : map.points) {
         if (kv.second.valid) before[e][kv.first] = truth(kv.second);
+        if (kv.second.valid) before_slam[e][kv.first] = kv.second.p_world;
       }
     }
   }
@@ -483,11 +490,24 @@ DynResult run(bool occlusion_handling, bool map_update = true,
           const SynthPointFate g = scene.point_fate(pw, ref, k, kTol);
           visible += g.in_view && !g.occluded;
         }
-        std::printf("[miss] %s visible %d id %ld ref %d invalidated at %d, now %s obs %d\n",
-                    er_out.object.c_str(), visible, long(kv.first), ref,
-                    iv == inval.end() ? -1 : iv->second.frame,
-                    mp == nullptr ? "erased" : (mp->valid ? "valid" : "invalid"),
-                    mp == nullptr ? 0 : int(mp->obs.size()));
+        const Eigen::Vector3d pb = before_slam[e][kv.first];
+        const double e3b = (sim.apply(pb) - pw).norm();
+        const double dzb = (seq.T_world_cam(ref).inverse() * sim.apply(pb)).z() -
+                           (seq.T_world_cam(ref).inverse() * pw).z();
+        double e3 = -1, dz = 0;
+        if (mp != nullptr) {
+          e3 = (sim.apply(mp->p_world) - pw).norm();
+          dz = (seq.T_world_cam(ref).inverse() * sim.apply(mp->p_world)).z() -
+               (seq.T_world_cam(ref).inverse() * pw).z();
+        }
+        std::printf(
+            "[miss] %s visible %d id %ld ref %d invalidated at %d, now %s obs %d 3d %.3f dz %.3f "
+            "before 3d %.3f dz %.3f edge %.2f\n",
+            er_out.object.c_str(), visible, long(kv.first), ref,
+            iv == inval.end() ? -1 : iv->second.frame,
+            mp == nullptr ? "erased" : (mp->valid ? "valid" : "invalid"),
+            mp == nullptr ? 0 : int(mp->obs.size()), e3, dz, e3b, dzb,
+            window_depth_ratio(scene, cam, ref, pw));
       }
     }
     r.episodes.push_back(er_out);

@@ -260,6 +260,33 @@ TEST(MapUpdater, NearerPointFarInFirstKeyframeIsStaticOcclusion) {
             static_cast<int>(s.object_ids.size()));
 }
 
+TEST(MapUpdater, PointsInViewOfNoSelectedKeyframeAreCheckedAgainstTheirOwn) {
+  // The only selected keyframe (closest_keyframes 1) is a newer one at the current pose that
+  // holds none of the points; the points' own keyframe 0 sits 2 mm away. The paper's selection
+  // never checks them; check_all_in_view judges each against keyframe 0.
+  for (const bool all : {false, true}) {
+    Scene s = make_scene(1.5);
+    s.map.keyframe(0)->T_cam_world.t = Eigen::Vector3d(0.002, 0, 0);
+    Keyframe newer;
+    newer.id = s.map.next_kf_id++;
+    newer.image = s.kf_image;
+    resize_features(newer.features, 0);
+    s.map.keyframes.emplace(newer.id, newer);
+    track_neighbours(s, 3.0);
+    ChangeDetectionParams p = paper_params();
+    p.closest_keyframes = 1;
+    p.check_all_in_view = all;
+    MapUpdater u(p, intrinsics());
+    const MapUpdateStats st =
+        u.update(s.map, changed_image(s.kf_image), Pose{}, s.cur, s.cur_point_of);
+    EXPECT_EQ(st.keyframes_selected, 1);
+    const int n_obj = static_cast<int>(s.object_ids.size());
+    EXPECT_EQ(count_invalid(s.map, s.object_ids), all ? n_obj : 0) << "check_all_in_view " << all;
+    EXPECT_EQ(count_invalid(s.map, s.static_ids), 0);
+    EXPECT_EQ(st.points_unselected, all ? n_obj + int(s.static_ids.size()) : 0);
+  }
+}
+
 TEST(MapUpdater, MapUpdateOffDoesNothing) {
   Scene s = make_scene(1.5);
   track_neighbours(s, 3.0);
