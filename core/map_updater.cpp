@@ -466,19 +466,30 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   candidates_.clear();
   triggered_.clear();
   prune_.clear();
-  // A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
-  // becomes a candidate, with eq. (2) against kf where the view test lets Alg. 1 reach it.
-  auto add_candidate = [&](Keyframe& kf, int i, MapPoint& p) {
-    const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
+  // An untracked point projecting into the view (window inside the image): its camera-frame
+  // position and pixel. False for a point tracked in this frame (present) or out of view.
+  auto untracked_in_view = [&](const MapPoint& p, Eigen::Vector3d& pc, Eigen::Vector2d& xp) {
     if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
-      return;  // observed in this frame: present
+      return false;
     }
-    const Eigen::Vector3d pc = T_cam_world * p.p_world;
-    if (pc.z() <= 1e-9) return;
-    const Eigen::Vector2d xp = K_.project(pc);
-    if (xp.x() < h || xp.y() < h || xp.x() >= image.cols - h || xp.y() >= image.rows - h) {
-      return;  // not in the current view
-    }
+    pc = T_cam_world * p.p_world;
+    if (pc.z() <= 1e-9) return false;
+    xp = K_.project(pc);
+    return xp.x() >= h && xp.y() >= h && xp.x() < image.cols - h && xp.y() < image.rows - h;
+  };
+  // The histogram trigger of keyframe kf (histogram_threshold 0: every keyframe is checked,
+  // even an identical image).
+  auto triggers = [&](const Keyframe& kf) {
+    const ColorHistogram& kh = keyframe_histogram(kf);
+    return kh.valid && (params_.histogram_threshold <= 0 ||
+                        histogram_difference(kh, current_hist_) > params_.histogram_threshold);
+  };
+  // A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
+  // (pc, xp from untracked_in_view) becomes a candidate, with eq. (2) against kf where the view
+  // test lets Alg. 1 reach it.
+  auto add_candidate = [&](Keyframe& kf, int i, MapPoint& p, const Eigen::Vector3d& pc,
+                           const Eigen::Vector2d& xp) {
+    const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
     if (p.obs.size() < min_obs) {
       ++st.points_not_established;
       return;
@@ -515,12 +526,7 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   for (int s = 0; s < nsel; ++s) {
     Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
-    const ColorHistogram& kh = keyframe_histogram(*kf);
-    // histogram_threshold 0: every selected keyframe is checked (even an identical image).
-    if (!kh.valid || (params_.histogram_threshold > 0 &&
-                      histogram_difference(kh, current_hist_) <= params_.histogram_threshold)) {
-      continue;
-    }
+    if (!triggers(*kf)) continue;
     ++st.keyframes_triggered;
     triggered_.push_back(kf->id);
     const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
@@ -528,8 +534,10 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       const int64_t pid = kf->point_of[i];
       if (pid < 0) continue;
       MapPoint* p = map.point(pid);
-      if (p == nullptr || !p->valid) continue;
-      add_candidate(*kf, i, *p);
+      Eigen::Vector3d pc;
+      Eigen::Vector2d xp;
+      if (p == nullptr || !p->valid || !untracked_in_view(*p, pc, xp)) continue;
+      add_candidate(*kf, i, *p, pc, xp);
     }
   }
   if (params_.check_all_in_view) {
@@ -546,14 +554,10 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     const double min_cos = std::cos(params_.keyframe_view_angle_deg * M_PI / 180.0);
     for (auto& kv : map.points) {
       MapPoint& p = kv.second;
+      Eigen::Vector3d pc;
+      Eigen::Vector2d xp;
       if (!p.valid || std::binary_search(covered_.begin(), covered_.end(), p.id) ||
-          std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
-        continue;
-      }
-      const Eigen::Vector3d pc = T_cam_world * p.p_world;
-      if (pc.z() <= 1e-9) continue;
-      const Eigen::Vector2d xp = K_.project(pc);
-      if (xp.x() < h || xp.y() < h || xp.x() >= image.cols - h || xp.y() >= image.rows - h) {
+          !untracked_in_view(p, pc, xp)) {
         continue;
       }
       Keyframe* ref = nullptr;
@@ -573,17 +577,12 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
           feat = o.feat;
         }
       }
-      if (ref == nullptr || feat < 0 || feat >= ref->features.count) continue;
-      const ColorHistogram& kh = keyframe_histogram(*ref);
-      if (!kh.valid || (params_.histogram_threshold > 0 &&
-                        histogram_difference(kh, current_hist_) <= params_.histogram_threshold)) {
-        continue;
-      }
+      if (ref == nullptr || feat < 0 || feat >= ref->features.count || !triggers(*ref)) continue;
       if (std::find(triggered_.begin(), triggered_.end(), ref->id) == triggered_.end()) {
         triggered_.push_back(ref->id);
       }
       ++st.points_unselected;
-      add_candidate(*ref, feat, p);
+      add_candidate(*ref, feat, p, pc, xp);
     }
   }
   // Pass 2: per point, the best reference (view test passed and smallest D_c first).

@@ -54,6 +54,7 @@
 #include <limits>
 #include <map>
 #include <unordered_map>
+#include <utility>
 
 #include "core/mapper.h"
 #include "core/tracker.h"
@@ -346,8 +347,9 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     for (size_t e = 0; e < episodes.size(); ++e) {
       if (n != episodes[e].start - 1) continue;
       for (const auto& kv : map.points) {
-        if (kv.second.valid) before[e][kv.first] = truth(kv.second);
-        if (kv.second.valid) before_slam[e][kv.first] = kv.second.p_world;
+        if (!kv.second.valid) continue;
+        before[e][kv.first] = truth(kv.second);
+        before_slam[e][kv.first] = kv.second.p_world;
       }
     }
   }
@@ -367,6 +369,13 @@ DynResult run(bool occlusion_handling, bool map_update = true,
   r.update_ms = ms.update_ms_total;
   Sim3Transform sim;
   if (!umeyama_align(est, gt, Alignment::kSim3, sim)) return r;
+  // Diagnostics: a map point's error against its true surface point after the alignment, in 3D
+  // and along the optical axis of frame `frame` (positive: the map point lies behind).
+  auto map_error = [&](const Eigen::Vector3d& p_slam, const Eigen::Vector3d& p_true, int frame) {
+    const Eigen::Vector3d a = sim.apply(p_slam);
+    const Eigen::Isometry3d T_cam_world = seq.T_world_cam(frame).inverse();
+    return std::make_pair((a - p_true).norm(), (T_cam_world * a).z() - (T_cam_world * p_true).z());
+  };
   // ATE (Sim3, RMSE of the camera centres) over the tracked frames, in % of the path length.
   double se = 0;
   for (size_t i = 0; i < est.size(); ++i) se += (sim.apply(est[i]) - gt[i]).squaredNorm();
@@ -438,9 +447,7 @@ DynResult run(bool occlusion_handling, bool map_update = true,
           c == cause_of.end() ? "other" : to_string(c->second.cause),
           c == cause_of.end() ? -1.0 : c->second.d_c, c == cause_of.end() ? -1 : c->second.keyframe,
           on ? on->name.c_str() : "-", f.occluded && oc ? oc->name.c_str() : "-", err,
-          (sim.apply(iv.p_slam) - pw).norm(),
-          (seq.T_world_cam(iv.frame).inverse() * sim.apply(iv.p_slam)).z() -
-              (seq.T_world_cam(iv.frame).inverse() * pw).z(),
+          map_error(iv.p_slam, pw, iv.frame).first, map_error(iv.p_slam, pw, iv.frame).second,
           window_depth_ratio(scene, cam, iv.ref_frame, pw));
     }
     if (!f.in_view) {
@@ -490,24 +497,17 @@ DynResult run(bool occlusion_handling, bool map_update = true,
           const SynthPointFate g = scene.point_fate(pw, ref, k, kTol);
           visible += g.in_view && !g.occluded;
         }
-        const Eigen::Vector3d pb = before_slam[e][kv.first];
-        const double e3b = (sim.apply(pb) - pw).norm();
-        const double dzb = (seq.T_world_cam(ref).inverse() * sim.apply(pb)).z() -
-                           (seq.T_world_cam(ref).inverse() * pw).z();
-        double e3 = -1, dz = 0;
-        if (mp != nullptr) {
-          e3 = (sim.apply(mp->p_world) - pw).norm();
-          dz = (seq.T_world_cam(ref).inverse() * sim.apply(mp->p_world)).z() -
-               (seq.T_world_cam(ref).inverse() * pw).z();
-        }
+        const auto before_err = map_error(before_slam[e][kv.first], pw, ref);
+        const auto now_err =
+            mp != nullptr ? map_error(mp->p_world, pw, ref) : std::make_pair(-1.0, 0.0);
         std::printf(
             "[miss] %s visible %d id %ld ref %d invalidated at %d, now %s obs %d 3d %.3f dz %.3f "
             "before 3d %.3f dz %.3f edge %.2f\n",
             er_out.object.c_str(), visible, long(kv.first), ref,
             iv == inval.end() ? -1 : iv->second.frame,
             mp == nullptr ? "erased" : (mp->valid ? "valid" : "invalid"),
-            mp == nullptr ? 0 : int(mp->obs.size()), e3, dz, e3b, dzb,
-            window_depth_ratio(scene, cam, ref, pw));
+            mp == nullptr ? 0 : int(mp->obs.size()), now_err.first, now_err.second,
+            before_err.first, before_err.second, window_depth_ratio(scene, cam, ref, pw));
       }
     }
     r.episodes.push_back(er_out);
