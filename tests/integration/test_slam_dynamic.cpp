@@ -18,8 +18,7 @@
 //    bucketed front end keeps enough background points for RANSAC to recover within ~10 frames, and
 //    both the sub-motion test (which uses the configured estimator) and map updating (stale book
 //    points leave the map) help RANSAC as much as PARSAC. Asserted: PARSAC <= 0.55% on every seed
-//    and
-//    <= 0.45% on average, RANSAC measurably worse on average (>= 1.1x) or lost.
+//    and <= 0.45% on average, RANSAC measurably worse on average (>= 1.1x) or lost.
 // Deterministic offline runs (core/slam.h run_offline), one per scenario and estimator,
 // shared between the assertions.
 #include <gtest/gtest.h>
