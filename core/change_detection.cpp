@@ -31,6 +31,8 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "require the new appearance to be static before a point is invalidated");
   v.field("require_static_evidence", require_static_evidence,
           "invalidate only when the temporal check finds a static surface at/behind the point");
+  v.field("check_new_points", check_new_points,
+          "a new point must look the same in a recent frame (a third view)");
   v.field("temporal_max_gap_s", temporal_max_gap_s, 0.0, 10.0,
           "oldest recent frame the temporal check may use (s)");
   v.field("temporal_depth_margin", temporal_depth_margin, 0.0, 0.9,

@@ -83,6 +83,12 @@ struct ChangeDetectionParams {
   bool require_static_evidence = true;
   double temporal_max_gap_s = 1.0;
   double temporal_depth_margin = 0.1;
+  // New points (not in the paper): a point the mapper triangulates from two keyframes is kept
+  // only if its window in the new keyframe is seen again (eq. (2), tau_c) at its projection
+  // into the recent checked frame with the widest baseline. Two views cannot tell a feature
+  // on an object that moved between them (along the epipolar line) from a static one at
+  // another depth; a third view can. Undecidable (no recent frame, outside the image) keeps.
+  bool check_new_points = true;
   double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
   double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
   double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid

@@ -277,6 +277,33 @@ void MapUpdater::remember(const UpdateFrame& f) {
   history_head_ = (history_head_ + 1) % kHistory;
 }
 
+bool MapUpdater::recent_frames_agree(const Eigen::Vector3d& p_world, const cv::Mat& image,
+                                     const Eigen::Vector2d& x, double depth,
+                                     int64_t stamp_ns) const {
+  if (!params_.check_new_points || stamp_ns < 0 || depth <= 1e-9) return true;
+  const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
+  // The oldest usable recent frame that sees the point: the widest baseline and the longest
+  // time for an object to have moved.
+  const Recent* oldest = nullptr;
+  for (const Recent& r : history_) {
+    if (r.stamp_ns < 0 || r.stamp_ns >= stamp_ns || stamp_ns - r.stamp_ns > max_gap ||
+        r.image.size != image.size || r.image.type() != image.type()) {
+      continue;
+    }
+    const Eigen::Vector3d q = r.T_cam_world * p_world;
+    if (q.z() <= 1e-9) continue;
+    const Eigen::Vector2d u = K_.project(q);
+    if (u.x() < 0 || u.y() < 0 || u.x() >= image.cols || u.y() >= image.rows) continue;
+    if (oldest == nullptr || r.stamp_ns < oldest->stamp_ns) oldest = &r;
+  }
+  if (oldest == nullptr) return true;
+  const Eigen::Vector3d q = oldest->T_cam_world * p_world;
+  const double d =
+      appearance_difference(image, x, oldest->image, K_.project(q), q.z() / depth, params_.window,
+                            params_.search_d, params_.normalise_appearance, params_.tau_c);
+  return !std::isfinite(d) || d <= params_.tau_c;
+}
+
 NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                                    double depth, const cv::Mat& image, const Pose& T_cam_world,
                                    int64_t stamp_ns, double* depth_seen) const {
@@ -379,8 +406,10 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
                                   std::vector<InvalidationRecord>* records) {
   MapUpdateStats st;
   records_ = records;
-  if (!params_.map_update || frame.image == nullptr || frame.image->empty() ||
-      map.keyframes.empty()) {
+  if (frame.image == nullptr || frame.image->empty() || map.keyframes.empty()) return st;
+  if (!params_.map_update) {
+    // --no-map-update: nothing is checked, but check_new_points still needs recent frames.
+    if (params_.check_new_points) remember(frame);
     return st;
   }
   const cv::Mat& image = *frame.image;

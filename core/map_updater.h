@@ -29,7 +29,8 @@
 //     (pruned: MapUpdateStats::points_pruned; the second paper's miss counter).
 // Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
 // !valid; an observation that invalidated points publishes at once); invalid keyframes are
-// removed by the mapper. With `map_update = false` update() does nothing (Figure 9 ablation);
+// removed by the mapper. With `map_update = false` update() changes nothing (Figure 9
+// ablation; it only keeps the frame for recent_frames_agree when check_new_points is on);
 // with `occlusion_handling = false` Alg. 1 invalidates on appearance alone (Figures 4-5).
 //
 // Deviations from the paper (argued where the parameters are declared, core/change_detection.h,
@@ -152,6 +153,13 @@ class MapUpdater {
                         std::vector<int64_t>* invalidated = nullptr,
                         std::vector<InvalidationRecord>* records = nullptr);
 
+  // dynamic.check_new_points, for the mapper creating a point at p_world from a keyframe whose
+  // feature is at `x` (`depth` in that keyframe, `image` the keyframe's frame, `stamp_ns` its
+  // time): false when the recent checked frame with the widest baseline shows a different
+  // window at the point's projection (eq. (2) above tau_c); true when it agrees or cannot
+  // decide. Mapper thread.
+  bool recent_frames_agree(const Eigen::Vector3d& p_world, const cv::Mat& image,
+                           const Eigen::Vector2d& x, double depth, int64_t stamp_ns) const;
   const ChangeDetectionParams& params() const { return params_; }
   // Forgets per-map state (confirmation counts, histograms, the previous frame): the mapper
   // calls it when the map is reset.

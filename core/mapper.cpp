@@ -34,7 +34,8 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
 }
 
 void Mapper::set_change_detection(const ChangeDetectionParams& p) {
-  updater_ = p.map_update ? std::make_unique<MapUpdater>(p, K_) : nullptr;
+  // With map updating off the updater still keeps the recent frames for check_new_points.
+  updater_ = p.map_update || p.check_new_points ? std::make_unique<MapUpdater>(p, K_) : nullptr;
 }
 
 bool Mapper::step(int timeout_ms) {
@@ -293,6 +294,13 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, std::vector<
       if (er > 5.991 * fr.scale[i] * fr.scale[i] || ej > 5.991 * fc.scale[j] * fc.scale[j]) {
         continue;
       }
+      // A third view (dynamic.check_new_points): an object that moved between R and C.
+      if (updater_ && !C.image.empty() &&
+          !updater_->recent_frames_agree(
+              p, C.image, Eigen::Vector2d(fc.kps[j].pt.x, fc.kps[j].pt.y), pc.z(), C.stamp_ns)) {
+        ++stats_.points_rejected_new;
+        continue;
+      }
       MapPoint mp;
       mp.id = map_.next_point_id++;
       mp.p_world = p;
@@ -427,6 +435,7 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
     kf.T_cam_world = c.T_cam_world;
     kf.features.copy_from(c.features);
     kf.point_of.assign(c.features.count, -1);
+    c.image.copyTo(kf.image);  // before triangulation: dynamic.check_new_points reads it
   }
   int tracked = 0;
   for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
@@ -446,7 +455,6 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   }
   ++map_.next_kf_id;
   ++map_.kf_seq;
-  c.image.copyTo(map_.keyframes[id].image);
   ++stats_.keyframes_accepted;
   stats_.points_created += n_new;
   fuse(id, related);

@@ -56,7 +56,8 @@ struct MapperStats {
   int keyframes_replaced = 0;        // invalid keyframes removed from the map
   double update_ms_total = 0.0;      // wall time in MapUpdater::update (observations only)
   int points_counter_discarded = 0;  // of points_invalidated: by the missed/moved counters
-  int points_pruned = 0;  // of points_culled: erased by the updater (dynamic.prune_unmatched)
+  int points_pruned = 0;        // of points_culled: erased by the updater (dynamic.prune_unmatched)
+  int points_rejected_new = 0;  // triangulated but not seen again (dynamic.check_new_points)
 };
 
 class Mapper {
@@ -74,8 +75,9 @@ class Mapper {
   // dynamic.check_every_n_frames tracked frames) is checked against the map. Invalid
   // keyframes (the 90% rule) are removed at once, so the tracker's keyframe rule replaces them
   // with newly selected frames; invalid points leave the matching index at the next publish,
-  // which an observation that invalidated anything triggers itself. Call before the first
-  // step().
+  // which an observation that invalidated anything triggers itself. With map_update off but
+  // check_new_points on, the observations only feed the new-point check. Call before the
+  // first step().
   void set_change_detection(const ChangeDetectionParams& p);
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }

@@ -49,9 +49,10 @@ class MapperStageImpl : public MapperStage {
 // Two slots: one candidate being mapped, one waiting. A third would only queue stale frames.
 constexpr uint32_t kCandidateSlots = 2;
 
-// Frame observations for the per-frame updating only when the mapper runs it.
+// Frame observations only when the mapper uses them (per-frame updating, or only the recent
+// frames of dynamic.check_new_points).
 int observe_every(const SlamParams& p) {
-  return p.dynamic.map_update ? p.dynamic.check_every_n_frames : 0;
+  return p.dynamic.map_update || p.dynamic.check_new_points ? p.dynamic.check_every_n_frames : 0;
 }
 
 }  // namespace

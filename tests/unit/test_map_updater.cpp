@@ -727,3 +727,47 @@ TEST(MapUpdaterTemporal, StaticOccluderInFrontKeepsThePoints) {
   EXPECT_EQ(q.invalid, 0);
   EXPECT_EQ(q.decisions[int(PointDecision::kKeepOccludedStatic)], 0);
 }
+
+// dynamic.check_new_points: a point the mapper triangulates from two keyframes must look the
+// same at its projection into the oldest recent frame. A point on an object that moved between
+// the two keyframes (along the epipolar line) gets a depth its surface does not have; seen
+// from a third view it lands elsewhere.
+TEST(MapUpdaterTemporal, NewPointMustLookTheSameInARecentFrame) {
+  using namespace temporal;
+  const Planes pl;
+  Scene s = make_planes_scene(pl);
+  ChangeDetectionParams p;
+  p.histogram_threshold = 0.0;
+  p.min_observations = 1;
+  MapUpdater u(p, intrinsics());
+  const PinholeIntrinsics K = intrinsics();
+  const Eigen::Vector2d x(260.0, 120.0);  // background only (the object covers u < 200)
+  const cv::Mat kf_image = render(pl, 0.0, false);
+  const int64_t kf_stamp = 2'000'000'000;
+  auto point_at = [&](double depth) { return Eigen::Vector3d(K.unproject(x.x(), x.y()) * depth); };
+  // No recent frame yet: undecidable, kept.
+  EXPECT_TRUE(u.recent_frames_agree(point_at(kObjDepth), kf_image, x, kObjDepth, kf_stamp));
+  // Recent frames from x = -10 cm to -2 cm (the keyframe is at 0).
+  int64_t stamp = kf_stamp - 300'000'000;
+  for (double tx = -0.10; tx < -0.015; tx += 0.02) {
+    const cv::Mat img = render(pl, tx, false);
+    UpdateFrame uf;
+    uf.image = &img;
+    uf.T_cam_world = camera_at(tx);
+    uf.un = s.cur.un.data();
+    uf.point_of = s.cur_point_of.data();
+    uf.count = 0;
+    uf.stamp_ns = stamp;
+    stamp += 60'000'000;
+    u.update(s.map, uf);
+  }
+  // At the background's depth the window is found again; at half of it (what a feature on an
+  // object moving with the camera triangulates to) it is 200 * 0.1 / 3 = 6.7 px off.
+  EXPECT_TRUE(u.recent_frames_agree(point_at(kBgDepth), kf_image, x, kBgDepth, kf_stamp));
+  EXPECT_FALSE(u.recent_frames_agree(point_at(kObjDepth), kf_image, x, kObjDepth, kf_stamp));
+  // Frames newer than the keyframe are not used; the check can be turned off.
+  EXPECT_TRUE(u.recent_frames_agree(point_at(kObjDepth), kf_image, x, kObjDepth, 0));
+  p.check_new_points = false;
+  MapUpdater off(p, intrinsics());
+  EXPECT_TRUE(off.recent_frames_agree(point_at(kObjDepth), kf_image, x, kObjDepth, kf_stamp));
+}
