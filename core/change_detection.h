@@ -85,7 +85,7 @@ struct ChangeDetectionParams {
   double temporal_depth_margin = 0.1;
   // New points (not in the paper): a point the mapper triangulates from two keyframes is kept
   // only if its window in the new keyframe is seen again (eq. (2), tau_c) at its projection
-  // into the recent checked frame with the widest baseline. Two views cannot tell a feature
+  // into the oldest recent checked frame (widest baseline). Two views cannot tell a feature
   // on an object that moved between them (along the epipolar line) from a static one at
   // another depth; a third view can. Undecidable (no recent frame, outside the image) keeps.
   bool check_new_points = true;
@@ -130,6 +130,12 @@ struct ChangeDetectionParams {
   double flow_threshold_px = 1.0;         // flow magnitude above which a candidate is rejected
   double stationary_translation = 0.002;  // camera moved less than this (map units) per frame
   double stationary_rotation_deg = 0.2;   // and rotated less than this per frame
+
+  // The mapper needs a MapUpdater and the tracker's frame observations for per-frame updating
+  // or, with map_update off, for check_new_points' recent frames.
+  bool needs_updater() const { return map_update || check_new_points; }
+  // SlamLink's observation rate: every check_every_n_frames tracked frames, 0 when unused.
+  int observe_every_n() const { return needs_updater() ? check_every_n_frames : 0; }
 
   void visit(ParamVisitor& v);
 };

@@ -277,29 +277,36 @@ void MapUpdater::remember(const UpdateFrame& f) {
   history_head_ = (history_head_ + 1) % kHistory;
 }
 
+bool MapUpdater::usable(const Recent& r, const cv::Mat& image, int64_t stamp_ns) const {
+  const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
+  return r.stamp_ns >= 0 && r.stamp_ns < stamp_ns && stamp_ns - r.stamp_ns <= max_gap &&
+         r.image.size == image.size && r.image.type() == image.type();
+}
+
 bool MapUpdater::recent_frames_agree(const Eigen::Vector3d& p_world, const cv::Mat& image,
                                      const Eigen::Vector2d& x, double depth,
                                      int64_t stamp_ns) const {
   if (!params_.check_new_points || stamp_ns < 0 || depth <= 1e-9) return true;
-  const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
   // The oldest usable recent frame that sees the point: the widest baseline and the longest
   // time for an object to have moved.
   const Recent* oldest = nullptr;
+  Eigen::Vector2d u_oldest;
+  double z_oldest = 0.0;
   for (const Recent& r : history_) {
-    if (r.stamp_ns < 0 || r.stamp_ns >= stamp_ns || stamp_ns - r.stamp_ns > max_gap ||
-        r.image.size != image.size || r.image.type() != image.type()) {
-      continue;
-    }
+    if (!usable(r, image, stamp_ns)) continue;
     const Eigen::Vector3d q = r.T_cam_world * p_world;
     if (q.z() <= 1e-9) continue;
     const Eigen::Vector2d u = K_.project(q);
     if (u.x() < 0 || u.y() < 0 || u.x() >= image.cols || u.y() >= image.rows) continue;
-    if (oldest == nullptr || r.stamp_ns < oldest->stamp_ns) oldest = &r;
+    if (oldest == nullptr || r.stamp_ns < oldest->stamp_ns) {
+      oldest = &r;
+      u_oldest = u;
+      z_oldest = q.z();
+    }
   }
   if (oldest == nullptr) return true;
-  const Eigen::Vector3d q = oldest->T_cam_world * p_world;
   const double d =
-      appearance_difference(image, x, oldest->image, K_.project(q), q.z() / depth, params_.window,
+      appearance_difference(image, x, oldest->image, u_oldest, z_oldest / depth, params_.window,
                             params_.search_d, params_.normalise_appearance, params_.tau_c);
   return !std::isfinite(d) || d <= params_.tau_c;
 }
@@ -309,15 +316,10 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
                                    int64_t stamp_ns, double* depth_seen) const {
   if (depth_seen != nullptr) *depth_seen = 0.0;
   if (!params_.temporal_check || stamp_ns < 0) return NewSurface::kUnknown;
-  const int64_t max_gap = static_cast<int64_t>(params_.temporal_max_gap_s * 1e9);
-  auto usable = [&](const Recent& r) {
-    return r.stamp_ns >= 0 && r.stamp_ns < stamp_ns && stamp_ns - r.stamp_ns <= max_gap &&
-           r.image.size == image.size && r.image.type() == image.type();
-  };
   // 1. Moving or static: the newest recent frame's window at X's projection there, searched
   // around x' (scale: depth ratio, near 1 for frames this close).
   const Recent& last = history_[(history_head_ + kHistory - 1) % kHistory];
-  if (!usable(last)) return NewSurface::kUnknown;
+  if (!usable(last, image, stamp_ns)) return NewSurface::kUnknown;
   const Eigen::Vector3d pl = last.T_cam_world * p_world;
   if (pl.z() <= 1e-9) return NewSurface::kUnknown;
   const double d_t = appearance_difference(last.image, K_.project(pl), image, x_prime,
@@ -332,7 +334,7 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   const Recent* wide = nullptr;
   double best_b = 0.0;
   for (const Recent& r : history_) {
-    if (!usable(r)) continue;
+    if (!usable(r, image, stamp_ns)) continue;
     const double b = (r.T_cam_world.centre() - c_cur).norm();
     if (b > best_b) {
       best_b = b;
@@ -378,7 +380,7 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   const Recent* mid = nullptr;
   double mid_err = std::numeric_limits<double>::infinity();
   for (const Recent& r : history_) {
-    if (!usable(r) || &r == wide) continue;
+    if (!usable(r, image, stamp_ns) || &r == wide) continue;
     const double e = std::abs((r.T_cam_world.centre() - c_cur).norm() - 0.5 * best_b);
     if (e < mid_err) {
       mid_err = e;

@@ -155,7 +155,7 @@ class MapUpdater {
 
   // dynamic.check_new_points, for the mapper creating a point at p_world from a keyframe whose
   // feature is at `x` (`depth` in that keyframe, `image` the keyframe's frame, `stamp_ns` its
-  // time): false when the recent checked frame with the widest baseline shows a different
+  // time): false when the oldest recent checked frame (widest baseline) shows a different
   // window at the point's projection (eq. (2) above tau_c); true when it agrees or cannot
   // decide. Mapper thread.
   bool recent_frames_agree(const Eigen::Vector3d& p_world, const cv::Mat& image,
@@ -229,6 +229,8 @@ class MapUpdater {
     Pose T_cam_world;
     int64_t stamp_ns = -1;
   };
+  // A recent frame older than stamp_ns (by at most temporal_max_gap_s) of image's size/type.
+  bool usable(const Recent& r, const cv::Mat& image, int64_t stamp_ns) const;
   NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                          double depth, const cv::Mat& image, const Pose& T_cam_world,
                          int64_t stamp_ns, double* depth_seen = nullptr) const;

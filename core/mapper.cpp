@@ -34,8 +34,7 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
 }
 
 void Mapper::set_change_detection(const ChangeDetectionParams& p) {
-  // With map updating off the updater still keeps the recent frames for check_new_points.
-  updater_ = p.map_update || p.check_new_points ? std::make_unique<MapUpdater>(p, K_) : nullptr;
+  updater_ = p.needs_updater() ? std::make_unique<MapUpdater>(p, K_) : nullptr;
 }
 
 bool Mapper::step(int timeout_ms) {
@@ -211,7 +210,8 @@ std::vector<int> Mapper::related_keyframes(int kf) const {
   return out;
 }
 
-int Mapper::triangulate(int kf_id, const std::vector<int>& related, std::vector<int64_t>& created) {
+int Mapper::triangulate(int kf_id, const std::vector<int>& related, const cv::Mat& image,
+                        std::vector<int64_t>& created) {
   Keyframe& C = *map_.keyframe(kf_id);
   const Features& fc = C.features;
   const bool bin = fc.binary;
@@ -295,9 +295,9 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, std::vector<
         continue;
       }
       // A third view (dynamic.check_new_points): an object that moved between R and C.
-      if (updater_ && !C.image.empty() &&
-          !updater_->recent_frames_agree(
-              p, C.image, Eigen::Vector2d(fc.kps[j].pt.x, fc.kps[j].pt.y), pc.z(), C.stamp_ns)) {
+      if (updater_ && !image.empty() &&
+          !updater_->recent_frames_agree(p, image, Eigen::Vector2d(fc.kps[j].pt.x, fc.kps[j].pt.y),
+                                         pc.z(), C.stamp_ns)) {
         ++stats_.points_rejected_new;
         continue;
       }
@@ -435,7 +435,6 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
     kf.T_cam_world = c.T_cam_world;
     kf.features.copy_from(c.features);
     kf.point_of.assign(c.features.count, -1);
-    c.image.copyTo(kf.image);  // before triangulation: dynamic.check_new_points reads it
   }
   int tracked = 0;
   for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
@@ -444,7 +443,7 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   }
   const std::vector<int> related = related_keyframes(id);
   std::vector<int64_t> created;
-  const int n_new = triangulate(id, related, created);
+  const int n_new = triangulate(id, related, c.image, created);
   stats_.last_new_points = n_new;
   // Sec. 4 condition 3: only a frame contributing more than m2 new points becomes a keyframe.
   if (n_new <= params_.m2) {
@@ -455,6 +454,7 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   }
   ++map_.next_kf_id;
   ++map_.kf_seq;
+  c.image.copyTo(map_.keyframes[id].image);
   ++stats_.keyframes_accepted;
   stats_.points_created += n_new;
   fuse(id, related);

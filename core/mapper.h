@@ -94,7 +94,9 @@ class Mapper {
   void handle_init(const KeyframeCandidate& c);
   void handle_keyframe(const KeyframeCandidate& c);
   std::vector<int> related_keyframes(int kf) const;
-  int triangulate(int kf, const std::vector<int>& related, std::vector<int64_t>& created);
+  // `image`: the candidate's frame (dynamic.check_new_points compares windows in it).
+  int triangulate(int kf, const std::vector<int>& related, const cv::Mat& image,
+                  std::vector<int64_t>& created);
   int fuse(int kf, const std::vector<int>& related);
   int project_and_add(int64_t pid, int kf);
   void update_descriptor(MapPoint& p) const;

@@ -49,12 +49,6 @@ class MapperStageImpl : public MapperStage {
 // Two slots: one candidate being mapped, one waiting. A third would only queue stale frames.
 constexpr uint32_t kCandidateSlots = 2;
 
-// Frame observations only when the mapper uses them (per-frame updating, or only the recent
-// frames of dynamic.check_new_points).
-int observe_every(const SlamParams& p) {
-  return p.dynamic.map_update || p.dynamic.check_new_points ? p.dynamic.check_every_n_frames : 0;
-}
-
 }  // namespace
 
 std::string SlamParams::validate() const {
@@ -67,7 +61,7 @@ std::string SlamParams::validate() const {
 }
 
 SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera) {
-  auto link = std::make_shared<SlamLink>(kCandidateSlots, observe_every(params));
+  auto link = std::make_shared<SlamLink>(kCandidateSlots, params.dynamic.observe_every_n());
   SlamStages s;
   s.tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
   s.mapper = std::make_unique<MapperStageImpl>(params, camera, link);
@@ -76,7 +70,7 @@ SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera)
 
 OfflineRun run_offline(FrameSource& source, const SlamParams& params, const CameraModel& camera,
                        int max_frames, const std::function<void(const OfflineFrame&)>& on_frame) {
-  auto link = std::make_shared<SlamLink>(kCandidateSlots, observe_every(params));
+  auto link = std::make_shared<SlamLink>(kCandidateSlots, params.dynamic.observe_every_n());
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, camera, link,
                   params.mapper.max_points);
   Mapper mapper(params.mapper, params.features, camera, link);
