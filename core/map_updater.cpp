@@ -658,7 +658,8 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     ++st.points_checked;
     ++st.decisions[static_cast<int>(d)];
     if (check_log_ != nullptr)
-      check_log_->push_back({c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen)});
+      check_log_->push_back({c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen),
+                             float(c.xp.x()), float(c.xp.y())});
     if (is_invalidation(d)) {
       // A change is a lasting state; a verdict caused by something passing (a moving object's
       // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive

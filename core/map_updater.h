@@ -132,6 +132,7 @@ struct CheckRecord {
   int neighbours = 0;      // |phi(x')|
   float depth = 0.f;       // z_X in the current camera
   float depth_seen = 0.f;  // temporal check: depth of what x' shows (0: none found)
+  float u = 0.f, v = 0.f;  // x', X's projection into the current frame
 };
 
 class MapUpdater {

@@ -47,8 +47,9 @@
 // ground-truth class and the depth ratio its window spans at the reference frame ([inv]), the
 // false positives with their situation and the map point's signed depth error ([fp]), the
 // occluded-only points invalidated ([occl]) and the misses ([miss], with the point's 3D and
-// depth error before the change and at the end). RDSLAM_TEST_SEED=N runs seed N of the scene
-// (diagnostics: the bars are asserted on the default seed).
+// depth error before the change and at the end, and its true pixel in its first keyframe).
+// RDSLAM_TEST_SEED=N runs seed N of the scene (diagnostics: the bars are asserted on the default
+// seed).
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -276,9 +277,10 @@ DynResult run(bool occlusion_handling, bool map_update = true,
     for (const InvalidationRecord& rec : log) cause_of.emplace(rec.id, rec);
     for (const CheckRecord& c : checks) {
       static const char* const kSeen[] = {"unknown", "moving", "in-front", "behind"};
-      std::printf("[check] frame %d id %ld %s seen %s d_c %.2f nn %d z %.3f z_seen %.3f\n", n,
-                  long(c.id), to_string(c.decision), kSeen[int(c.seen) & 3], c.d_c, c.neighbours,
-                  c.depth, c.depth_seen);
+      std::printf(
+          "[check] frame %d id %ld %s seen %s d_c %.2f nn %d z %.3f z_seen %.3f px %.0f %.0f\n", n,
+          long(c.id), to_string(c.decision), kSeen[int(c.seen) & 3], c.d_c, c.neighbours, c.depth,
+          c.depth_seen, c.u, c.v);
     }
     checks.clear();
     if (test::is_tracked(tr.state)) {
@@ -497,16 +499,22 @@ DynResult run(bool occlusion_handling, bool map_update = true,
           visible += g.in_view && !g.occluded;
         }
         const auto before_err = map_error(before_slam[e][kv.first], pw, ref);
+        // Where the point's true surface point projects in its first keyframe (to find it
+        // in the rendered frames).
+        const Eigen::Vector3d pc = scene.T_world_cam.at(ref).inverse() * pw;
+        const Eigen::Vector2d px_ref(cam.fx * pc.x() / pc.z() + cam.cx,
+                                     cam.fy * pc.y() / pc.z() + cam.cy);
         const auto now_err =
             mp != nullptr ? map_error(mp->p_world, pw, ref) : std::make_pair(-1.0, 0.0);
         std::printf(
             "[miss] %s visible %d id %ld ref %d invalidated at %d, now %s obs %d 3d %.3f dz %.3f "
-            "before 3d %.3f dz %.3f edge %.2f\n",
+            "before 3d %.3f dz %.3f edge %.2f px %.0f %.0f\n",
             er_out.object.c_str(), visible, long(kv.first), ref,
             iv == inval.end() ? -1 : iv->second.frame,
             mp == nullptr ? "erased" : (mp->valid ? "valid" : "invalid"),
             mp == nullptr ? 0 : int(mp->obs.size()), now_err.first, now_err.second,
-            before_err.first, before_err.second, window_depth_ratio(scene, cam, ref, pw));
+            before_err.first, before_err.second, window_depth_ratio(scene, cam, ref, pw),
+            px_ref.x(), px_ref.y());
       }
     }
     r.episodes.push_back(er_out);
