@@ -174,6 +174,11 @@ double cover_gap(const SynthScene& scene, int frame, const Eigen::Vector3d& pw) 
   return (1.0 - lambda) * (pw - o).norm();
 }
 
+// The pixel of a point in camera coordinates (pinhole, the renderer's model; z > 0).
+Eigen::Vector2d pixel_of(const CameraModel& cam, const Eigen::Vector3d& pc) {
+  return {cam.fx * pc.x() / pc.z() + cam.cx, cam.fy * pc.y() / pc.z() + cam.cy};
+}
+
 // Casts the rays of 9 pixels of X's 11x11 window at `ref` (its centre, edges and corners) from
 // that frame's true pose; f(surface id or 0, depth) returns false to stop. Nothing when X is
 // behind the camera.
@@ -183,7 +188,8 @@ void for_each_window_ray(const SynthScene& scene, const CameraModel& cam, int re
   const Eigen::Isometry3d& T = scene.T_world_cam.at(ref);
   const Eigen::Vector3d pc = T.inverse() * pw;
   if (pc.z() <= 0) return;
-  const double u = cam.fx * pc.x() / pc.z() + cam.cx, v = cam.fy * pc.y() / pc.z() + cam.cy;
+  const Eigen::Vector2d x = pixel_of(cam, pc);
+  const double u = x.x(), v = x.y();
   for (int dy = -5; dy <= 5; dy += 5) {
     for (int dx = -5; dx <= 5; dx += 5) {
       const Eigen::Vector3d ray((u + dx - cam.cx) / cam.fx, (v + dy - cam.cy) / cam.fy, 1.0);
@@ -501,9 +507,7 @@ DynResult run(bool occlusion_handling, bool map_update = true,
         const auto before_err = map_error(before_slam[e][kv.first], pw, ref);
         // Where the point's true surface point projects in its first keyframe (to find it
         // in the rendered frames).
-        const Eigen::Vector3d pc = scene.T_world_cam.at(ref).inverse() * pw;
-        const Eigen::Vector2d px_ref(cam.fx * pc.x() / pc.z() + cam.cx,
-                                     cam.fy * pc.y() / pc.z() + cam.cy);
+        const Eigen::Vector2d px_ref = pixel_of(cam, scene.T_world_cam.at(ref).inverse() * pw);
         const auto now_err =
             mp != nullptr ? map_error(mp->p_world, pw, ref) : std::make_pair(-1.0, 0.0);
         std::printf(
