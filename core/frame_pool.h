@@ -15,8 +15,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/frame_source.h"
 #include "core/spsc_ring.h"
-#include "drivers/frame_source.h"
 
 namespace rdslam {
 

@@ -16,7 +16,6 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <opencv2/core.hpp>
 #include <opencv2/flann.hpp>
 #include <unordered_map>
@@ -61,19 +60,29 @@ struct MapSnapshot {
 
 class MatchIndex {
  public:
-  // Mapper: make `snap` the active index (one atomic pointer swap).
+  // Mapper: make `snap` the active index (one atomic index store). Never blocks.
   void publish(std::shared_ptr<const MapSnapshot> snap);
   // Tracker: the active snapshot (nullptr before the first publish). Holds a reference.
+  // Lock-free: a retry loop that only repeats while publish() runs concurrently.
   std::shared_ptr<const MapSnapshot> acquire() const;
   uint64_t version() const { return version_.load(std::memory_order_acquire); }
-  // Mapper: free retired snapshots that the tracker no longer holds.
+  // Mapper: free retired snapshots that the tracker (or a debug sink) no longer holds.
   void collect();
 
  private:
-  std::shared_ptr<const MapSnapshot> active_;
+  // No lock between the tracker and the mapper (a SCHED_FIFO tracker waiting on a niced
+  // mapper's mutex would be a priority inversion; std::atomic<shared_ptr> is C++20, and
+  // libstdc++'s atomic_load(shared_ptr) takes a mutex from a pool). Instead: three slots
+  // written only by the mapper, the active slot's index published atomically, and one hazard
+  // index through which the tracker announces the slot it is copying from. publish() writes
+  // a slot that is neither active nor announced; acquire() re-reads the active index after
+  // announcing, so it never copies a slot that publish() may be writing (all four accesses
+  // seq_cst). A slot's previous snapshot moves to `retired_`, which only the mapper touches.
+  static constexpr int kSlots = 3;
+  std::shared_ptr<const MapSnapshot> slots_[kSlots];
+  std::atomic<int> active_{-1};
+  mutable std::atomic<int> reading_{-1};
   std::atomic<uint64_t> version_{0};
-  // Guards active_ only for the duration of a pointer copy (std::atomic<shared_ptr> is C++20).
-  mutable std::mutex swap_mutex_;
   std::vector<std::shared_ptr<const MapSnapshot>> retired_;  // mapper thread only
 };
 

@@ -19,10 +19,10 @@
 
 #include "core/change_detection.h"
 #include "core/features.h"
+#include "core/frame_source.h"
 #include "core/mapper.h"
 #include "core/stages.h"
 #include "core/tracker.h"
-#include "drivers/frame_source.h"
 
 namespace rdslam {
 

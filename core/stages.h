@@ -13,7 +13,7 @@
 
 namespace rdslam {
 
-struct Frame;          // drivers/frame_source.h
+struct Frame;          // core/frame_source.h
 class DebugFrameSink;  // core/debug_frame.h
 
 // Values match the STATE_* constants of lcmtypes/rdslam_pose_t.lcm.

@@ -35,12 +35,12 @@
 
 #include "core/debug_frame.h"
 #include "core/features.h"
+#include "core/frame_source.h"
 #include "core/initializer.h"
 #include "core/keyframe.h"
 #include "core/params.h"
 #include "core/pose_estimation.h"
 #include "core/stages.h"
-#include "drivers/frame_source.h"
 
 namespace rdslam {
 

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 #include "drivers/mjpeg_decoder.h"
 
 namespace rdslam {

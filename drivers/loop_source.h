@@ -17,7 +17,7 @@
 #include <cstddef>
 #include <memory>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 
 namespace rdslam {
 

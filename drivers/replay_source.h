@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 
 namespace rdslam {
 

@@ -9,7 +9,7 @@
 #include <memory>
 #include <string>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 #include "drivers/libcamera_source.h"
 #include "drivers/v4l2_source.h"
 

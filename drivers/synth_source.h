@@ -3,14 +3,14 @@
 // stamped at 1/fps from t = 0; camera() gives the scene's intrinsics and ground_truth() the
 // exact T_world_cam of every frame. Pacing (SourceOptions::speed) is ReplaySource's.
 //
-// Ownership/threads: as any FrameSource (drivers/frame_source.h).
+// Ownership/threads: as any FrameSource (core/frame_source.h).
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <string>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 #include "drivers/source_factory.h"
 
 namespace rdslam {

@@ -29,8 +29,8 @@
 #include <string>
 #include <vector>
 
+#include "core/frame_source.h"
 #include "core/params.h"
-#include "drivers/frame_source.h"
 
 namespace rdslam {
 

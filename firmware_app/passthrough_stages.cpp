@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 
 namespace rdslam {
 

@@ -39,10 +39,10 @@
 #include <vector>
 
 #include "core/frame_pool.h"
+#include "core/frame_source.h"
 #include "core/latency_histogram.h"
 #include "core/spsc_ring.h"
 #include "core/stages.h"
-#include "drivers/frame_source.h"
 #include "firmware_app/pipeline_params.h"
 
 namespace rdslam {

@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "core/frame_source.h"
 #include "core/slam.h"
 #include "core/trajectory.h"
 #include "core/trajectory_eval.h"
-#include "drivers/frame_source.h"
 #include "firmware_app/config.h"
 
 namespace rdslam::test {

@@ -11,7 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 
 namespace rdslam::testing {
 

@@ -14,8 +14,8 @@
 #include <thread>
 #include <vector>
 
+#include "core/frame_source.h"
 #include "core/stages.h"
-#include "drivers/frame_source.h"
 #include "firmware_app/pipeline.h"
 
 namespace rdslam {

@@ -1,4 +1,4 @@
-#include "drivers/frame_source.h"
+#include "core/frame_source.h"
 
 namespace rdslam {
 
