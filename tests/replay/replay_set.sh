@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# The replay set (issue 21's behaviour check): every built-in synthetic scenario and, when
+# ../shared is present, the KITTI 06 excerpt, each through `rdslam replay` (lossless,
+# deterministic, default configuration). Writes OUT/<name>.tum and OUT/<name>.json and prints
+# a table: tracked frames, first tracked frame, ATE % of path, keyframes and map points at the
+# end. With -c REF, also compares every trajectory byte for byte with REF/<name>.tum and exits
+# 1 when any differs (a refactoring must not change them, or the change is stated with its
+# measured effect).
+#
+# A measurement, not a CI test (about 4 minutes on 2 cores).
+#
+# Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-t] OUT_DIR [-- extra args]
+#   -t  only print the table (and compare) of the runs already in OUT_DIR
+set -euo pipefail
+repo="$(cd "$(dirname "$0")/../.." && pwd)"
+rdslam="$repo/build/firmware_app/rdslam"
+ref=""
+jobs=2
+table_only=0
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    -b) rdslam="$2"; shift 2 ;;
+    -c) ref="$2"; shift 2 ;;
+    -j) jobs="$2"; shift 2 ;;
+    -t) table_only=1; shift ;;
+    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    --) shift; break ;;
+    -*) echo "replay_set: unknown option $1" >&2; exit 2 ;;
+    *) out="$1"; shift ;;
+  esac
+done
+[[ -n "${out:-}" ]] || { echo "replay_set: OUT_DIR missing (-h for help)" >&2; exit 2; }
+mkdir -p "$out"
+sources=()
+for s in static_xyz static_halfsphere walking_xyz walking_halfsphere rigid_object rearrange \
+         flashlight sitting stationary_camera_people; do
+  sources+=("$s=synth:$s")
+done
+kitti="$repo/../shared/data/kitti06_excerpt"
+if [[ -d "$kitti" ]]; then
+  sources+=("kitti06=kitti:$kitti")
+else
+  echo "replay_set: $kitti not found: kitti06 skipped" >&2
+fi
+run_one() {  # name=uri
+  local name=${1%%=*} uri=${1#*=}
+  shift
+  "$rdslam" replay "$uri" --trajectory "$out/$name.tum" --report "$out/$name.json" "$@" \
+    > "$out/$name.log" 2>&1 || { echo "replay_set: $name failed (see $out/$name.log)" >&2; return 1; }
+}
+export -f run_one
+export rdslam out
+(( table_only )) || printf '%s\n' "${sources[@]}" | xargs -P "$jobs" -I{} bash -c 'run_one "$@"' _ {} "$@"
+status=0
+printf '%-26s %8s %5s %8s %5s %7s %s\n' scene tracked init "ATE %" kfs points "${ref:+vs $ref}"
+for s in "${sources[@]}"; do
+  name=${s%%=*}
+  line=$(python3 - "$out/$name.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+def f(k, fmt):
+    v = r.get(k)
+    return "-" if v is None else fmt.format(v)
+print(f("tracked_frames", "{}"), f("initialized_frame", "{}"), f("ate_rmse_pct_path", "{:.3f}"),
+      f("keyframes", "{}"), f("map_points", "{}"))
+PY
+)
+  verdict=""
+  if [[ -n "$ref" ]]; then
+    if cmp -s "$out/$name.tum" "$ref/$name.tum"; then verdict=identical; else verdict=DIFFERS; status=1; fi
+  fi
+  # shellcheck disable=SC2086
+  printf '%-26s %8s %5s %8s %5s %7s %s\n' "$name" ${line:-- - - - -} "$verdict"
+done
+exit $status
