@@ -56,10 +56,6 @@ void FeatureParams::visit(ParamVisitor& v) {
   v.field("scale_factor", scale_factor, 1.05, 2.0, "ORB pyramid scale between levels");
   v.field("fast_threshold", fast_threshold, 1, 100, "FAST corner threshold (grey levels)");
   v.field("grid_cell_px", grid_cell_px, 8, 256, "bucketing cell size in pixels");
-  v.field("match_ratio", match_ratio, 0.1, 1.0, "2-NN ratio for ORB projection matching");
-  v.field("sift_ratio", sift_ratio, 0.1, 1.0, "paper Sec. 3: SIFT matching confidence c < 0.6");
-  v.field("orb_max_distance", orb_max_distance, 1, 256, "max Hamming distance of a match");
-  v.field("sift_max_distance", sift_max_distance, 1.0, 1000.0, "max L2 distance of a SIFT match");
   v.field("sift_first_octave", sift_first_octave, -1, 0,
           "SIFT first octave: 0 image resolution (SiftGPU default), -1 upsampled 2x (slow)");
 }
@@ -67,18 +63,6 @@ void FeatureParams::visit(ParamVisitor& v) {
 std::string FeatureParams::validate() const {
   if (max_features < 100) return "features.max_features: must be >= 100";
   return {};
-}
-
-double descriptor_distance(const uint8_t* a, const uint8_t* b, bool binary) {
-  if (binary) return hamming256(a, b);
-  const float* x = reinterpret_cast<const float*>(a);
-  const float* y = reinterpret_cast<const float*>(b);
-  float s = 0.f;
-  for (int i = 0; i < 128; ++i) {
-    const float d = x[i] - y[i];
-    s += d * d;
-  }
-  return std::sqrt(static_cast<double>(s));
 }
 
 void Features::build_grid() {
@@ -233,7 +217,7 @@ void FeatureExtractor::prepare(Features& out, int w, int h) const {
   if (out.desc.rows < static_cast<int>(cap) || out.desc.type() != type || out.desc.cols != cols) {
     out.desc.create(static_cast<int>(cap), cols, type);
   }
-  out.binary = !params_.is_sift();
+  out.binary = params_.binary();
   out.width = w;
   out.height = h;
   out.count = 0;

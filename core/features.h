@@ -27,6 +27,7 @@
 
 #include "core/camera.h"
 #include "core/image_ops.h"
+#include "core/matching.h"
 #include "core/params.h"
 
 namespace rdslam {
@@ -36,12 +37,8 @@ struct FeatureParams {
   int max_features = 1200;   // per frame
   int levels = 4;            // ORB pyramid levels
   double scale_factor = 1.2;
-  int fast_threshold = 12;           // FAST threshold; cells rank corners by score
-  int grid_cell_px = 40;             // bucketing cell size (level-0 pixels)
-  double match_ratio = 0.8;          // 2-NN ratio for ORB projection-guided matches
-  double sift_ratio = 0.6;           // the paper's matching confidence c < 0.6 (Sec. 3)
-  int orb_max_distance = 64;         // Hamming distance accepted for a match (of 256 bits)
-  double sift_max_distance = 250.0;  // L2 distance accepted for a SIFT match (unit 512 norm)
+  int fast_threshold = 12;  // FAST threshold; cells rank corners by score
+  int grid_cell_px = 40;    // bucketing cell size (level-0 pixels)
   // First SIFT octave: 0 = DoG scale space starts at the image resolution (SiftGPU's default,
   // Wu 2007, the SIFT of RDSLAM's implementation); -1 = Lowe's 2x upsampled image (OpenCV's
   // fixed choice; 4x the pixels, about 4x slower, adds only the finest-scale keypoints).
@@ -49,7 +46,12 @@ struct FeatureParams {
 
   void visit(ParamVisitor& v);
   std::string validate() const;
+  // Acceptance rules of every matcher (config section `matching`, core/matching.h).
+  MatchingParams matching;
+
   bool is_sift() const { return mode == "sift"; }
+  // The one place the feature mode is decided: binary (ORB, Hamming) or float (SIFT, L2).
+  bool binary() const { return !is_sift(); }
   int descriptor_bytes() const { return is_sift() ? 128 * 4 : 32; }
 };
 
@@ -78,32 +80,6 @@ struct Features {
   const uint8_t* desc_ptr(int i) const { return desc.ptr<uint8_t>(i); }
   void copy_from(const Features& o);  // reuses capacity
 };
-
-// Descriptor distance: Hamming bits (binary) or L2 (float), as a double.
-double descriptor_distance(const uint8_t* a, const uint8_t* b, bool binary);
-
-// The nearest and second-nearest candidate seen so far, for the ratio test of every matcher
-// (tracker, initializer, mapper). `index` is -1 until a candidate is offered.
-struct BestTwo {
-  double d1 = 1e30;
-  double d2 = 1e30;
-  int index = -1;
-  void offer(double d, int i) {
-    if (d < d1) {
-      d2 = d1;
-      d1 = d;
-      index = i;
-    } else if (d < d2) {
-      d2 = d;
-    }
-  }
-};
-inline int hamming256(const uint8_t* a, const uint8_t* b) {
-  const uint64_t* x = reinterpret_cast<const uint64_t*>(a);
-  const uint64_t* y = reinterpret_cast<const uint64_t*>(b);
-  return __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +
-         __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);
-}
 
 class FeatureExtractor {
  public:

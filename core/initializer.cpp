@@ -62,35 +62,20 @@ void Initializer::reset() {
 int Initializer::match(const Features& cur) {
   const int nref = ref_.count;
   match_of_ref_.assign(nref, -1);
-  std::vector<double> best_cur(cur.count, 1e18);
-  std::vector<int> best_cur_ref(cur.count, -1);
+  claims_.reset(nref, cur.count);
   cand_.resize(4096);
   const float radius = static_cast<float>(params_.search_radius_frac * cur.width);
-  const bool bin = cur.binary;
-  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
-  const double ratio = bin ? 0.9 : fparams_.sift_ratio;
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kInit, bin);
   for (int i = 0; i < nref; ++i) {
     const int n =
         cur.radius_search(ref_.un[i].x, ref_.un[i].y, radius, ref_.level[i] - 1, ref_.level[i] + 1,
                           cand_.data(), static_cast<int>(cand_.size()));
-    BestTwo best;
-    for (int k = 0; k < n; ++k) {
-      const int j = cand_[k];
-      best.offer(descriptor_distance(ref_.desc_ptr(i), cur.desc_ptr(j), bin), j);
-    }
-    const int bi = best.index;
-    const double b1 = best.d1;
-    if (bi < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
-    if (b1 < best_cur[bi]) {
-      if (best_cur_ref[bi] >= 0) match_of_ref_[best_cur_ref[bi]] = -1;
-      best_cur[bi] = b1;
-      best_cur_ref[bi] = i;
-      match_of_ref_[i] = bi;
-    }
+    const BestTwo best = best_of(ref_.desc_ptr(i), cur, cand_.data(), n, bin);
+    if (rule.accepts(best)) claims_.offer(i, best.index, best.d1);
   }
-  int n = 0;
-  for (int i = 0; i < nref; ++i) n += match_of_ref_[i] >= 0;
-  return n;
+  for (int i = 0; i < nref; ++i) match_of_ref_[i] = claims_.target_of(i);
+  return claims_.matched();
 }
 
 namespace {

@@ -31,6 +31,7 @@
 #include "core/bundle_adjustment.h"
 #include "core/features.h"
 #include "core/geometry.h"
+#include "core/matching.h"
 #include "core/params.h"
 
 namespace rdslam {
@@ -103,6 +104,7 @@ class Initializer {
   int64_t ref_stamp_ = 0;
   std::vector<int> match_of_ref_;  // ref feature -> cur feature or -1
   std::vector<int> cand_;
+  ClaimTable claims_;  // reference feature -> current feature, best distance wins
 };
 
 }  // namespace rdslam

@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "core/log.h"
+#include "core/matching.h"
 #include "core/prefix_visitor.h"
 
 namespace rdslam {
@@ -214,9 +215,8 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, const cv::Ma
                         std::vector<int64_t>& created) {
   Keyframe& C = *map_.keyframe(kf_id);
   const Features& fc = C.features;
-  const bool bin = fc.binary;
-  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
-  const double ratio = bin ? 0.8 : fparams_.sift_ratio;
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kTriangulate, bin);
   const double min_cos = std::cos(params_.min_parallax_deg * M_PI / 180.0);
   const Eigen::Vector3d cc = C.T_cam_world.centre();
   std::vector<char> used(fc.count, 0);
@@ -247,9 +247,7 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, const cv::Ma
     for (int i = 0; i < fr.count; ++i) {
       if (R.point_of[i] < 0) r_free.push_back(i);
     }
-    std::vector<int> match_r(fc.count, -1);
-    std::vector<double> claim(fr.count, 1e30);
-    std::vector<int> claim_j(fr.count, -1);
+    claims_.reset(fc.count, fr.count);
     for (int j = 0; j < fc.count; ++j) {
       if (used[j]) continue;
       const Eigen::Vector2d xj(fc.un[j].x, fc.un[j].y);
@@ -258,25 +256,17 @@ int Mapper::triangulate(int kf_id, const std::vector<int>& related, const cv::Ma
       const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
       const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
       if (ln < 1e-12) continue;
-      BestTwo best;
-      for (int i : r_free) {
-        const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
-        if (e * e > 3.84 * fr.scale[i] * fr.scale[i]) continue;
-        if (bin && std::abs(fr.level[i] - fc.level[j]) > 2) continue;
-        best.offer(descriptor_distance(fr.desc_ptr(i), fc.desc_ptr(j), bin), i);
-      }
-      const int bi = best.index;
-      const double b1 = best.d1;
-      if (bi < 0 || b1 > max_d || (best.d2 < 1e29 && b1 > ratio * best.d2)) continue;
-      if (b1 < claim[bi]) {
-        if (claim_j[bi] >= 0) match_r[claim_j[bi]] = -1;
-        claim[bi] = b1;
-        claim_j[bi] = j;
-        match_r[j] = bi;
-      }
+      // Candidates of R off the epipolar line (chi2 1 DoF, 95%) or far in scale are skipped.
+      const BestTwo best = best_of(
+          fc.desc_ptr(j), fr, r_free.data(), static_cast<int>(r_free.size()), bin, [&](int i) {
+            const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
+            return e * e > 3.84 * fr.scale[i] * fr.scale[i] ||
+                   (bin && std::abs(fr.level[i] - fc.level[j]) > 2);
+          });
+      if (rule.accepts(best)) claims_.offer(j, best.index, best.d1);
     }
     for (int j = 0; j < fc.count; ++j) {
-      const int i = match_r[j];
+      const int i = claims_.target_of(j);
       if (i < 0 || used[j] || R.point_of[i] >= 0) continue;
       const Eigen::Vector3d bj = K_.unproject(fc.un[j].x, fc.un[j].y);
       const Eigen::Vector3d bi = K_.unproject(fr.un[i].x, fr.un[i].y);
@@ -334,36 +324,26 @@ int Mapper::project_and_add(int64_t pid, int kf_id) {
   if (uv.x() < 0 || uv.y() < 0 || uv.x() >= f.width || uv.y() >= f.height) return 0;
   const Eigen::Vector3d v = k->T_cam_world.centre() - p->p_world;
   const double dist = v.norm();
-  const bool bin = f.binary;
+  const bool bin = fparams_.binary();
   if (bin && (dist < p->min_dist || dist > p->max_dist)) return 0;
   if (p->normal.dot(v) < 0.5 * dist) return 0;
   int lvl = 0, lo = -1, hi = 1 << 20;
   if (bin) {
-    lvl = static_cast<int>(std::ceil(std::log(p->max_dist / 1.2 / dist) /
-                                     std::log(std::max(1.0001, fparams_.scale_factor))));
-    lvl = std::max(0, std::min(fparams_.levels - 1, lvl));
+    lvl = predict_level(p->max_dist, dist, std::log(std::max(1.0001, fparams_.scale_factor)),
+                        fparams_.levels);
     lo = lvl - 1;
     hi = lvl + 1;
   }
   const double rad = 3.0 * std::pow(fparams_.scale_factor, lvl);
   const int n = f.radius_search(float(uv.x()), float(uv.y()), float(rad), lo, hi, cand_.data(),
                                 static_cast<int>(cand_.size()));
-  const double max_d = bin ? 50.0 : fparams_.sift_max_distance;
-  double b1 = 1e30;
-  int bj = -1;
-  for (int q = 0; q < n; ++q) {
-    const int j = cand_[q];
-    if (k->point_of[j] >= 0) continue;
-    const double e2 = (Eigen::Vector2d(f.un[j].x, f.un[j].y) - uv).squaredNorm();
-    if (e2 > 5.991 * f.scale[j] * f.scale[j]) continue;
-    const double d = descriptor_distance(p->desc.data(), f.desc_ptr(j), bin);
-    if (d < b1) {
-      b1 = d;
-      bj = j;
-    }
-  }
-  if (bj < 0 || b1 > max_d) return 0;
-  return map_.add_observation(pid, kf_id, bj) ? 1 : 0;
+  // Free features within the reprojection gate (chi2 2 DoF, 95%); the nearest descriptor.
+  const BestTwo best = best_of(p->desc.data(), f, cand_.data(), n, bin, [&](int j) {
+    return k->point_of[j] >= 0 || (Eigen::Vector2d(f.un[j].x, f.un[j].y) - uv).squaredNorm() >
+                                      5.991 * f.scale[j] * f.scale[j];
+  });
+  if (!fparams_.matching.rule(MatchPurpose::kFuse, bin).accepts(best)) return 0;
+  return map_.add_observation(pid, kf_id, best.index) ? 1 : 0;
 }
 
 int Mapper::fuse(int kf_id, const std::vector<int>& related) {
@@ -411,7 +391,7 @@ void Mapper::update_descriptor(MapPoint& p) const {
   }
   const int m = static_cast<int>(d.size());
   if (m < 3) return;
-  const bool bin = fparams_.mode != "sift";
+  const bool bin = fparams_.binary();
   double best = 1e30;
   int bi = 0;
   std::vector<double> row(m);
@@ -561,7 +541,7 @@ void Mapper::publish() {
   auto s = std::make_shared<MapSnapshot>();
   s->version = ++version_;
   s->epoch = epoch_;
-  s->binary = fparams_.mode != "sift";
+  s->binary = fparams_.binary();
   std::unordered_map<int, int> kf_index;
   for (const auto& [id, k] : map_.keyframes) {
     kf_index[id] = static_cast<int>(s->kf_ids.size());

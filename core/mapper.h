@@ -29,6 +29,7 @@
 #include "core/keyframe.h"
 #include "core/map.h"
 #include "core/map_updater.h"
+#include "core/matching.h"
 #include "core/params.h"
 
 namespace rdslam {
@@ -113,6 +114,7 @@ class Mapper {
   uint64_t version_ = 0;
   MapperStats stats_;
   std::vector<int> cand_;
+  ClaimTable claims_;  // triangulation: new keyframe feature -> related keyframe feature
   std::unique_ptr<MapUpdater> updater_;
   std::vector<InvalidationRecord>* inval_log_ = nullptr;
   // Debug output only (SlamLink::debug_recent_invalid > 0): points seen invalid at a publish,

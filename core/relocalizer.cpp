@@ -3,6 +3,8 @@
 #include <cmath>
 #include <vector>
 
+#include "core/matching.h"
+
 namespace rdslam {
 
 int global_match(const Features& f, const MapSnapshot& snap, const FeatureParams& params,
@@ -10,36 +12,28 @@ int global_match(const Features& f, const MapSnapshot& snap, const FeatureParams
   const int rows = snap.rows();
   if (rows < 2 || f.count == 0) return 0;
   int n = 0;
-  if (f.binary) {
-    const int max_d = params.orb_max_distance;
+  const bool bin = params.binary();
+  const MatchRule& rule = params.matching.rule(MatchPurpose::kRelocalize, bin);
+  if (bin) {
     for (int j = 0; j < f.count && n < cap; ++j) {
-      int b1 = 1 << 20, b2 = 1 << 20, br = -1;
-      const uint8_t* q = f.desc_ptr(j);
-      for (int r = 0; r < rows; ++r) {
-        const int d = hamming256(q, snap.desc.ptr<uint8_t>(r));
-        if (d < b1) {
-          b2 = b1;
-          b1 = d;
-          br = r;
-        } else if (d < b2) {
-          b2 = d;
-        }
-      }
-      if (br >= 0 && b1 <= max_d && b1 < 0.75 * b2) {
-        pairs[2 * n] = j;
-        pairs[2 * n + 1] = br;
-        ++n;
-      }
+      const BestTwo best = best_of_rows(f.desc_ptr(j), snap.desc, rows, true);
+      if (!rule.accepts(best)) continue;
+      pairs[2 * n] = j;
+      pairs[2 * n + 1] = best.index;
+      ++n;
     }
   } else {
     if (!snap.kdtree) return 0;
     cv::Mat idx, dist;
     snap.kdtree->knnSearch(f.desc.rowRange(0, f.count), idx, dist, 2, cv::flann::SearchParams(32));
     for (int j = 0; j < f.count && n < cap; ++j) {
-      const float d1 = std::sqrt(dist.at<float>(j, 0)), d2 = std::sqrt(dist.at<float>(j, 1));
-      const int r = idx.at<int>(j, 0);
       // Paper Sec. 3: matched when c = ||p(x) - p(N1)|| / ||p(x) - p(N2)|| < 0.6.
-      if (r < 0 || r >= rows || d2 <= 0 || d1 / d2 >= params.sift_ratio) continue;
+      BestTwo best;
+      best.d1 = std::sqrt(dist.at<float>(j, 0));
+      best.d2 = std::sqrt(dist.at<float>(j, 1));
+      const int r = idx.at<int>(j, 0);
+      best.index = r;
+      if (r < 0 || r >= rows || best.d2 <= 0 || !rule.accepts(best)) continue;
       pairs[2 * n] = j;
       pairs[2 * n + 1] = r;
       ++n;

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/log.h"
+#include "core/matching.h"
 #include "core/prefix_visitor.h"
 #include "core/relocalizer.h"
 
@@ -112,9 +113,8 @@ void Tracker::refresh_snapshot() {
 }
 
 int Tracker::match_motion(const Pose& T, double radius) {
-  const bool bin = cur_.f.binary;
-  const double max_d = bin ? fparams_.orb_max_distance : fparams_.sift_max_distance;
-  const double ratio = bin ? 0.9 : fparams_.sift_ratio;
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kMotion, bin);
   for (int i = 0; i < last_.f.count; ++i) {
     if (last_.pid[i] < 0) continue;
     const Eigen::Vector3d pc = T * last_.p[i];
@@ -125,14 +125,10 @@ int Tracker::match_motion(const Pose& T, double radius) {
     const int n = cur_.f.radius_search(
         float(uv.x()), float(uv.y()), float(radius * last_.f.scale[i]), bin ? lvl - 1 : -1,
         bin ? lvl + 1 : 1 << 20, cand_.data(), static_cast<int>(cand_.size()));
-    BestTwo best;
-    for (int k = 0; k < n; ++k) {
-      const int j = cand_[k];
-      best.offer(descriptor_distance(last_.f.desc_ptr(i), cur_.f.desc_ptr(j), bin), j);
-    }
+    const BestTwo best = best_of(last_.f.desc_ptr(i), cur_.f, cand_.data(), n, bin);
+    if (!rule.accepts(best)) continue;
     const int bj = best.index;
     const double b1 = best.d1;
-    if (bj < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
     if (b1 >= cur_.best_dist[bj]) continue;
     cur_.pid[bj] = last_.pid[i];
     cur_.p[bj] = last_.p[i];
@@ -147,9 +143,8 @@ int Tracker::match_motion(const Pose& T, double radius) {
 int Tracker::match_local_map(const Pose& T, double radius) {
   if (!snap_) return 0;
   const MapSnapshot& s = *snap_;
-  const bool bin = cur_.f.binary;
-  const double max_d = bin ? fparams_.orb_max_distance : fparams_.sift_max_distance;
-  const double ratio = bin ? fparams_.match_ratio : fparams_.sift_ratio;
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kLocalMap, bin);
   const Eigen::Vector3d c = T.centre();
   const double log_sf = std::log(std::max(1.0001, fparams_.scale_factor));
   const int L = static_cast<int>(level_scale_.size());
@@ -171,24 +166,18 @@ int Tracker::match_local_map(const Pose& T, double radius) {
     if (view_cos < 0.5) continue;
     int lvl = 0, lo = -1, hi = 1 << 20;
     if (bin) {
-      lvl = static_cast<int>(std::ceil(std::log(s.max_dist[r] / 1.2 / dist) / log_sf));
-      lvl = std::max(0, std::min(L - 1, lvl));
+      lvl = predict_level(s.max_dist[r], dist, log_sf, L);
       lo = lvl - 1;
       hi = lvl + 1;
     }
     const double rad = radius * (view_cos > 0.998 ? 1.0 : 1.5) * level_scale_[lvl];
     const int n = cur_.f.radius_search(float(uv.x()), float(uv.y()), float(rad), lo, hi,
                                        cand_.data(), static_cast<int>(cand_.size()));
-    BestTwo best;
-    const uint8_t* d_r = s.desc.ptr<uint8_t>(r);
-    for (int k = 0; k < n; ++k) {
-      const int j = cand_[k];
-      if (cur_.pid[j] >= 0) continue;
-      best.offer(descriptor_distance(d_r, cur_.f.desc_ptr(j), bin), j);
-    }
+    const BestTwo best = best_of(s.desc.ptr<uint8_t>(r), cur_.f, cand_.data(), n, bin,
+                                 [this](int j) { return cur_.pid[j] >= 0; });
+    if (!rule.accepts(best)) continue;
     const int bj = best.index;
     const double b1 = best.d1;
-    if (bj < 0 || b1 > max_d || b1 > ratio * best.d2) continue;
     cur_.pid[bj] = s.ids[r];
     cur_.p[bj] = p;
     cur_.row[bj] = r;

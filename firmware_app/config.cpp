@@ -36,6 +36,7 @@ std::vector<AppConfig::Section> AppConfig::sections() {
       {"pipeline", [this](ParamVisitor& v) { pipeline.visit(v); }},
       {"threads", [this](ParamVisitor& v) { threads.visit(v); }},
       {"features", [this](ParamVisitor& v) { slam.features.visit(v); }},
+      {"matching", [this](ParamVisitor& v) { slam.features.matching.visit(v); }},
       {"tracker", [this](ParamVisitor& v) { slam.tracker.visit(v); }},
       {"mapper", [this](ParamVisitor& v) { slam.mapper.visit(v); }},
       {"parsac", [this](ParamVisitor& v) { parsac.visit(v); }},

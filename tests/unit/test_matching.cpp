@@ -1,0 +1,117 @@
+// core/matching: the one acceptance rule of every matcher, its per-purpose parameters and their
+// validation, the one-to-one assignment, the pyramid-level prediction (issue 21).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/matching.h"
+#include "firmware_app/config.h"
+
+namespace rdslam {
+namespace {
+
+BestTwo best(double d1, double d2) {
+  BestTwo b;
+  b.offer(d1, 0);
+  b.offer(d2, 1);
+  return b;
+}
+
+TEST(Matching, RuleTestsDistanceAndRatioInclusive) {
+  const MatchRule r{50, 0.8};
+  EXPECT_TRUE(r.accepts(best(40, 50)));    // 40 <= 0.8 * 50, the boundary is accepted
+  EXPECT_FALSE(r.accepts(best(41, 50)));   // ratio
+  EXPECT_FALSE(r.accepts(best(51, 200)));  // distance
+  EXPECT_TRUE(r.accepts(best(50, 200)));
+  BestTwo one;
+  one.offer(10, 3);  // a single candidate has no second nearest: the ratio test passes
+  EXPECT_TRUE(r.accepts(one));
+  EXPECT_FALSE(r.accepts(BestTwo{}));  // no candidate
+  const MatchRule nearest_only{50, 1.0};
+  EXPECT_TRUE(nearest_only.accepts(best(30, 30)));  // ratio 1: any nearest within the limit
+}
+
+TEST(Matching, BestTwoKeepsFirstOfEqualAndSkips) {
+  Features f;
+  f.desc = cv::Mat::zeros(4, 32, CV_8U);
+  f.desc.at<uint8_t>(1, 0) = 0x01;  // distance 1 from zero
+  f.desc.at<uint8_t>(2, 0) = 0x01;  // also 1: the first offered stays nearest
+  f.desc.at<uint8_t>(3, 0) = 0x07;  // 3
+  const uint8_t zero[32] = {};
+  const int cand[] = {3, 1, 2};
+  BestTwo b = best_of(zero, f, cand, 3, true);
+  EXPECT_EQ(b.index, 1);
+  EXPECT_EQ(b.d1, 1.0);
+  EXPECT_EQ(b.d2, 1.0);
+  b = best_of(zero, f, cand, 3, true, [](int j) { return j == 1; });
+  EXPECT_EQ(b.index, 2);
+  EXPECT_EQ(b.d2, 3.0);
+  const BestTwo rows = best_of_rows(zero, f.desc, 4, true);
+  EXPECT_EQ(rows.index, 0);
+  EXPECT_EQ(rows.d1, 0.0);
+  EXPECT_EQ(rows.d2, 1.0);
+}
+
+TEST(Matching, ClaimTableGivesEachTargetToItsClosestQuery) {
+  ClaimTable t;
+  t.reset(3, 2);
+  t.offer(0, 1, 20.0);
+  t.offer(1, 1, 10.0);  // closer: query 0 loses target 1
+  t.offer(2, 1, 10.0);  // equal: the holder keeps it
+  t.offer(2, 0, 5.0);
+  EXPECT_EQ(t.target_of(0), -1);
+  EXPECT_EQ(t.target_of(1), 1);
+  EXPECT_EQ(t.target_of(2), 0);
+  EXPECT_EQ(t.matched(), 2);
+  t.reset(2, 2);
+  EXPECT_EQ(t.matched(), 0);
+}
+
+TEST(Matching, PredictedLevelIsClampedScalePrediction) {
+  const double log_sf = std::log(1.2);
+  // A point first seen at level 0 from 1 m: max_dist = 1.2 m * 1.2^0; from 1 m it is at level 0.
+  EXPECT_EQ(predict_level(1.2, 1.0, log_sf, 4), 0);
+  // From 1/1.2^2 m it appears 1.44x larger: level 2.
+  EXPECT_EQ(predict_level(1.2, 1.0 / 1.44, log_sf, 4), 2);
+  EXPECT_EQ(predict_level(1.2, 1e-3, log_sf, 4), 3);  // clamped to the top level
+  EXPECT_EQ(predict_level(1.2, 100.0, log_sf, 4), 0);
+}
+
+TEST(Matching, RulePerPurposeAndModeAndDefaults) {
+  const MatchingParams p;
+  EXPECT_EQ(p.rule(MatchPurpose::kMotion, true).max_distance, 64);
+  EXPECT_EQ(p.rule(MatchPurpose::kMotion, true).ratio, 0.9);
+  EXPECT_EQ(p.rule(MatchPurpose::kLocalMap, true).ratio, 0.8);
+  EXPECT_EQ(p.rule(MatchPurpose::kInit, true).max_distance, 50);
+  EXPECT_EQ(p.rule(MatchPurpose::kTriangulate, true).ratio, 0.8);
+  EXPECT_EQ(p.rule(MatchPurpose::kFuse, true).ratio, 1.0);
+  EXPECT_EQ(p.rule(MatchPurpose::kRelocalize, true).ratio, 0.75);
+  for (int k = 0; k < kMatchPurposes; ++k) {
+    const MatchRule& s = p.rule(MatchPurpose(k), false);
+    EXPECT_EQ(s.max_distance, 250);
+    EXPECT_EQ(s.ratio, MatchPurpose(k) == MatchPurpose::kFuse ? 1.0 : 0.6);  // paper: c < 0.6
+  }
+}
+
+TEST(Matching, ConfigKeysSetAndValidateEachRule) {
+  AppConfig cfg =
+      load_config("", {"matching.orb_local_ratio=0.7", "matching.sift_reloc_max_distance=300"});
+  EXPECT_EQ(cfg.slam.features.matching.rule(MatchPurpose::kLocalMap, true).ratio, 0.7);
+  EXPECT_EQ(cfg.slam.features.matching.rule(MatchPurpose::kRelocalize, false).max_distance, 300);
+  EXPECT_EQ(cfg.slam.features.matching.rule(MatchPurpose::kMotion, true).ratio, 0.9);  // untouched
+  try {
+    load_config("", {"matching.orb_init_max_distance=300"});
+    FAIL() << "accepted a Hamming distance above 256";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "config: matching.orb_init_max_distance: value '300' is out of range; allowed [1, "
+              "256]");
+  }
+  EXPECT_THROW(load_config("", {"matching.sift_fuse_ratio=1.5"}), ConfigError);
+  EXPECT_THROW(load_config("", {"features.match_ratio=0.8"}), ConfigError);  // moved to matching
+}
+
+}  // namespace
+}  // namespace rdslam
