@@ -131,20 +131,7 @@ void Mapper::process(const KeyframeCandidate& c) {
       return;
     case KeyframeCandidate::Kind::kKeyframe:
       if (c.epoch == epoch_ && !map_.keyframes.empty()) {
-        bool changed = false;
-        if (updater_) {
-          UpdateFrame f;
-          f.image = &c.image;
-          f.T_cam_world = c.T_cam_world;
-          f.un = c.features.un.data();
-          f.point_of = c.point_of.data();
-          f.count = std::min<int>(c.features.count, static_cast<int>(c.point_of.size()));
-          f.stamp_ns = c.stamp_ns;
-          const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
-          account(u);
-          if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
-          changed = u.map_changed();
-        }
+        const bool changed = update_on_candidate(c);
         const int published = stats_.snapshots;
         handle_keyframe(c);
         // A rejected candidate does not publish: invalid points still leave the index now.
@@ -152,6 +139,24 @@ void Mapper::process(const KeyframeCandidate& c) {
       }
       return;
   }
+}
+
+bool Mapper::update_on_candidate(const KeyframeCandidate& c) {
+  // Sec. 4 map updating on the candidate, before it is inserted: Algorithm 1 with the candidate
+  // as the current frame (core/map_updater.h); invalid keyframes go now. True if the map
+  // changed.
+  if (!updater_) return false;
+  UpdateFrame f;
+  f.image = &c.image;
+  f.T_cam_world = c.T_cam_world;
+  f.un = c.features.un.data();
+  f.point_of = c.point_of.data();
+  f.count = std::min<int>(c.features.count, static_cast<int>(c.point_of.size()));
+  f.stamp_ns = c.stamp_ns;
+  const MapUpdateStats u = updater_->update(map_, f, nullptr, inval_log_);
+  account(u);
+  if (u.keyframes_invalidated > 0) remove_invalid_keyframes();
+  return u.map_changed();
 }
 
 void Mapper::handle_init(const KeyframeCandidate& c) {
@@ -213,101 +218,132 @@ std::vector<int> Mapper::related_keyframes(int kf) const {
 
 int Mapper::triangulate(int kf_id, const std::vector<int>& related, const cv::Mat& image,
                         std::vector<int64_t>& created) {
-  Keyframe& C = *map_.keyframe(kf_id);
+  // Sec. 4 "track triangulation": the candidate's features without a map point are matched
+  // against each related keyframe in turn; a feature that got a point is not matched again.
+  const Keyframe& C = *map_.keyframe(kf_id);
   const Features& fc = C.features;
-  const bool bin = fparams_.binary();
-  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kTriangulate, bin);
-  const double min_cos = std::cos(params_.min_parallax_deg * M_PI / 180.0);
-  const Eigen::Vector3d cc = C.T_cam_world.centre();
   std::vector<char> used(fc.count, 0);
   for (int j = 0; j < fc.count; ++j) used[j] = C.point_of[j] >= 0;
   int n_new = 0;
   for (int rid : related) {
-    Keyframe* Rp = map_.keyframe(rid);
-    if (!Rp) continue;
-    Keyframe& R = *Rp;
-    const Features& fr = R.features;
-    const Eigen::Vector3d cr = R.T_cam_world.centre();
-    // Skip pairs whose baseline is tiny compared with the scene depth (ORB-SLAM's test).
-    std::vector<double> depth;
-    for (int i = 0; i < fr.count; ++i) {
-      if (R.point_of[i] < 0) continue;
-      const MapPoint* p = map_.point(R.point_of[i]);
-      if (p) depth.push_back((R.T_cam_world * p->p_world).z());
-    }
-    if (depth.empty()) continue;
-    std::nth_element(depth.begin(), depth.begin() + depth.size() / 2, depth.end());
-    if ((cc - cr).norm() / std::max(1e-9, depth[depth.size() / 2]) < 0.01) continue;
-    const Eigen::Matrix3d F = fundamental_from_poses(K_, R.T_cam_world, C.T_cam_world);
-    // Epipole in C (projection of R's centre): matches near it have no parallax.
-    const Eigen::Vector3d ec = C.T_cam_world * cr;
-    const bool has_epi = ec.z() > 1e-9;
-    const Eigen::Vector2d epi = has_epi ? K_.project(ec) : Eigen::Vector2d(-1e9, -1e9);
-    std::vector<int> r_free;
-    for (int i = 0; i < fr.count; ++i) {
-      if (R.point_of[i] < 0) r_free.push_back(i);
-    }
-    claims_.reset(fc.count, fr.count);
-    for (int j = 0; j < fc.count; ++j) {
-      if (used[j]) continue;
-      const Eigen::Vector2d xj(fc.un[j].x, fc.un[j].y);
-      if ((xj - epi).squaredNorm() < 100.0 * fc.scale[j] * fc.scale[j]) continue;
-      // Epipolar line of j in R: l = F^T x_j; distance of x_i to it.
-      const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
-      const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
-      if (ln < 1e-12) continue;
-      // Candidates of R off the epipolar line (chi2 1 DoF, 95%) or far in scale are skipped.
-      const BestTwo best = best_of(
-          fc.desc_ptr(j), fr, r_free.data(), static_cast<int>(r_free.size()), bin, [&](int i) {
-            const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
-            return e * e > 3.84 * fr.scale[i] * fr.scale[i] ||
-                   (bin && std::abs(fr.level[i] - fc.level[j]) > 2);
-          });
-      if (rule.accepts(best)) claims_.offer(j, best.index, best.d1);
-    }
+    const Keyframe* R = triangulation_partner(C, rid);
+    if (!R) continue;
+    match_epipolar(C, *R, used);
     for (int j = 0; j < fc.count; ++j) {
       const int i = claims_.target_of(j);
-      if (i < 0 || used[j] || R.point_of[i] >= 0) continue;
-      const Eigen::Vector3d bj = K_.unproject(fc.un[j].x, fc.un[j].y);
-      const Eigen::Vector3d bi = K_.unproject(fr.un[i].x, fr.un[i].y);
-      // Rays must not be near-parallel (triangulation angle from the rays themselves).
-      const Eigen::Vector3d rj = C.T_cam_world.R.transpose() * bj.normalized();
-      const Eigen::Vector3d ri = R.T_cam_world.R.transpose() * bi.normalized();
-      if (rj.dot(ri) > 0.99999) continue;
+      if (i < 0 || used[j] || R->point_of[i] >= 0) continue;
       Eigen::Vector3d p;
-      if (!triangulate_dlt(R.T_cam_world, bi, C.T_cam_world, bj, p)) continue;
-      if (parallax_cos(p, cr, cc) > min_cos) continue;
-      const Eigen::Vector3d pr = R.T_cam_world * p, pc = C.T_cam_world * p;
-      if (pr.z() <= 0 || pc.z() <= 0) continue;
-      const double er = (K_.project(pr) - Eigen::Vector2d(fr.un[i].x, fr.un[i].y)).squaredNorm();
-      const double ej = (K_.project(pc) - Eigen::Vector2d(fc.un[j].x, fc.un[j].y)).squaredNorm();
-      if (er > 5.991 * fr.scale[i] * fr.scale[i] || ej > 5.991 * fc.scale[j] * fc.scale[j]) {
-        continue;
-      }
-      // A third view (dynamic.check_new_points): an object that moved between R and C.
-      if (updater_ && !image.empty() &&
-          !updater_->recent_frames_agree(p, image, Eigen::Vector2d(fc.kps[j].pt.x, fc.kps[j].pt.y),
-                                         pc.z(), C.stamp_ns)) {
-        ++stats_.points_rejected_new;
-        continue;
-      }
-      MapPoint mp;
-      mp.id = map_.next_point_id++;
-      mp.p_world = p;
-      mp.first_kf = rid < kf_id ? rid : kf_id;
-      mp.created_kf_seq = map_.kf_seq;
-      const size_t bytes = static_cast<size_t>(fc.desc.cols) * fc.desc.elemSize();
-      mp.desc.assign(fc.desc_ptr(j), fc.desc_ptr(j) + bytes);
-      const int64_t pid = mp.id;
-      map_.points.emplace(pid, std::move(mp));
-      map_.add_observation(pid, kf_id, j);
-      map_.add_observation(pid, rid, i);
+      if (!triangulate_match(C, *R, j, i, image, p)) continue;
+      created.push_back(create_point(kf_id, rid, j, i, p));
       used[j] = 1;
-      created.push_back(pid);
       ++n_new;
     }
   }
   return n_new;
+}
+
+Keyframe* Mapper::triangulation_partner(const Keyframe& C, int rid) {
+  // Pair selection: a related keyframe (still in the map) whose baseline to the candidate is
+  // not tiny compared with its median scene depth (ORB-SLAM's test).
+  Keyframe* R = map_.keyframe(rid);
+  if (!R) return nullptr;
+  std::vector<double> depth;
+  for (int i = 0; i < R->features.count; ++i) {
+    if (R->point_of[i] < 0) continue;
+    const MapPoint* p = map_.point(R->point_of[i]);
+    if (p) depth.push_back((R->T_cam_world * p->p_world).z());
+  }
+  if (depth.empty()) return nullptr;
+  std::nth_element(depth.begin(), depth.begin() + depth.size() / 2, depth.end());
+  const double baseline = (C.T_cam_world.centre() - R->T_cam_world.centre()).norm();
+  if (baseline / std::max(1e-9, depth[depth.size() / 2]) < 0.01) return nullptr;
+  return R;
+}
+
+void Mapper::match_epipolar(const Keyframe& C, const Keyframe& R, const std::vector<char>& used) {
+  // Epipolar matching: each free feature j of the candidate C against R's free features near
+  // its epipolar line (MatchPurpose::kTriangulate); one-to-one by best distance (claims_).
+  const Features& fc = C.features;
+  const Features& fr = R.features;
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kTriangulate, bin);
+  const Eigen::Matrix3d F = fundamental_from_poses(K_, R.T_cam_world, C.T_cam_world);
+  // Epipole in C (projection of R's centre): matches near it have no parallax.
+  const Eigen::Vector3d ec = C.T_cam_world * R.T_cam_world.centre();
+  const bool has_epi = ec.z() > 1e-9;
+  const Eigen::Vector2d epi = has_epi ? K_.project(ec) : Eigen::Vector2d(-1e9, -1e9);
+  std::vector<int> r_free;
+  for (int i = 0; i < fr.count; ++i) {
+    if (R.point_of[i] < 0) r_free.push_back(i);
+  }
+  claims_.reset(fc.count, fr.count);
+  for (int j = 0; j < fc.count; ++j) {
+    if (used[j]) continue;
+    const Eigen::Vector2d xj(fc.un[j].x, fc.un[j].y);
+    if ((xj - epi).squaredNorm() < 100.0 * fc.scale[j] * fc.scale[j]) continue;
+    // Epipolar line of j in R: l = F^T x_j; distance of x_i to it.
+    const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
+    const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
+    if (ln < 1e-12) continue;
+    // Candidates of R off the epipolar line (chi2 1 DoF, 95%) or far in scale are skipped.
+    const BestTwo best = best_of(
+        fc.desc_ptr(j), fr, r_free.data(), static_cast<int>(r_free.size()), bin, [&](int i) {
+          const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
+          return e * e > 3.84 * fr.scale[i] * fr.scale[i] ||
+                 (bin && std::abs(fr.level[i] - fc.level[j]) > 2);
+        });
+    if (rule.accepts(best)) claims_.offer(j, best.index, best.d1);
+  }
+}
+
+bool Mapper::triangulate_match(const Keyframe& C, const Keyframe& R, int j, int i,
+                               const cv::Mat& image, Eigen::Vector3d& p) {
+  // One match (feature j of C, i of R): two-view triangulation, then the parallax, cheirality
+  // and reprojection checks, then the third view (dynamic.check_new_points).
+  const Features& fc = C.features;
+  const Features& fr = R.features;
+  const Eigen::Vector3d cc = C.T_cam_world.centre(), cr = R.T_cam_world.centre();
+  const Eigen::Vector3d bj = K_.unproject(fc.un[j].x, fc.un[j].y);
+  const Eigen::Vector3d bi = K_.unproject(fr.un[i].x, fr.un[i].y);
+  // Rays must not be near-parallel (triangulation angle from the rays themselves).
+  const Eigen::Vector3d rj = C.T_cam_world.R.transpose() * bj.normalized();
+  const Eigen::Vector3d ri = R.T_cam_world.R.transpose() * bi.normalized();
+  if (rj.dot(ri) > 0.99999) return false;
+  if (!triangulate_dlt(R.T_cam_world, bi, C.T_cam_world, bj, p)) return false;
+  if (parallax_cos(p, cr, cc) > std::cos(params_.min_parallax_deg * M_PI / 180.0)) return false;
+  const Eigen::Vector3d pr = R.T_cam_world * p, pc = C.T_cam_world * p;
+  if (pr.z() <= 0 || pc.z() <= 0) return false;
+  const double er = (K_.project(pr) - Eigen::Vector2d(fr.un[i].x, fr.un[i].y)).squaredNorm();
+  const double ej = (K_.project(pc) - Eigen::Vector2d(fc.un[j].x, fc.un[j].y)).squaredNorm();
+  if (er > 5.991 * fr.scale[i] * fr.scale[i] || ej > 5.991 * fc.scale[j] * fc.scale[j]) {
+    return false;
+  }
+  // A third view (dynamic.check_new_points): an object that moved between R and C.
+  if (updater_ && !image.empty() &&
+      !updater_->recent_frames_agree(p, image, Eigen::Vector2d(fc.kps[j].pt.x, fc.kps[j].pt.y),
+                                     pc.z(), C.stamp_ns)) {
+    ++stats_.points_rejected_new;
+    return false;
+  }
+  return true;
+}
+
+int64_t Mapper::create_point(int kf_id, int rid, int j, int i, const Eigen::Vector3d& p) {
+  // A new map point at p, observed by feature j of the candidate and feature i of keyframe
+  // rid, with j's descriptor; created_kf_seq dates it for the recent-point culling.
+  const Features& fc = map_.keyframe(kf_id)->features;
+  MapPoint mp;
+  mp.id = map_.next_point_id++;
+  mp.p_world = p;
+  mp.first_kf = rid < kf_id ? rid : kf_id;
+  mp.created_kf_seq = map_.kf_seq;
+  const size_t bytes = static_cast<size_t>(fc.desc.cols) * fc.desc.elemSize();
+  mp.desc.assign(fc.desc_ptr(j), fc.desc_ptr(j) + bytes);
+  const int64_t pid = mp.id;
+  map_.points.emplace(pid, std::move(mp));
+  map_.add_observation(pid, kf_id, j);
+  map_.add_observation(pid, rid, i);
+  return pid;
 }
 
 int Mapper::project_and_add(int64_t pid, int kf_id) {
@@ -407,58 +443,87 @@ void Mapper::update_descriptor(MapPoint& p) const {
 }
 
 void Mapper::handle_keyframe(const KeyframeCandidate& c) {
-  const int id = map_.next_kf_id;
-  {
-    Keyframe& kf = map_.keyframes[id];
-    kf.id = id;
-    kf.stamp_ns = c.stamp_ns;
-    kf.T_cam_world = c.T_cam_world;
-    kf.features.copy_from(c.features);
-    kf.point_of.assign(c.features.count, -1);
-  }
-  int tracked = 0;
-  for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
-    const int64_t pid = c.point_of[j];
-    if (pid >= 0 && map_.add_observation(pid, id, j)) ++tracked;
-  }
+  // The keyframe path of Sec. 4, for a candidate that passed the tracker's conditions (m1):
+  // insert it, triangulate new tracks with the related keyframes, keep it only under
+  // condition m2, then fuse, refine the tracks, run local BA, cull and publish.
+  const int id = insert_keyframe(c);
   const std::vector<int> related = related_keyframes(id);
   std::vector<int64_t> created;
   const int n_new = triangulate(id, related, c.image, created);
   stats_.last_new_points = n_new;
-  // Sec. 4 condition 3: only a frame contributing more than m2 new points becomes a keyframe.
+  if (!accept_keyframe(id, n_new, created, c.image)) return;
+  fuse(id, related);
+  refine_new_tracks(created);
+  update_keyframe_points(id);
+  local_bundle_adjustment(id);
+  cull(id);
+  publish();
+}
+
+int Mapper::insert_keyframe(const KeyframeCandidate& c) {
+  // The candidate enters the map as keyframe next_kf_id (not yet counted: condition m2 may
+  // still remove it), with the observations of the map points the tracker matched in it.
+  const int id = map_.next_kf_id;
+  Keyframe& kf = map_.keyframes[id];
+  kf.id = id;
+  kf.stamp_ns = c.stamp_ns;
+  kf.T_cam_world = c.T_cam_world;
+  kf.features.copy_from(c.features);
+  kf.point_of.assign(c.features.count, -1);
+  for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
+    const int64_t pid = c.point_of[j];
+    if (pid >= 0) map_.add_observation(pid, id, j);
+  }
+  return id;
+}
+
+bool Mapper::accept_keyframe(int id, int n_new, const std::vector<int64_t>& created,
+                             const cv::Mat& image) {
+  // Sec. 4 condition 3 (m2): only a frame contributing more than m2 new points becomes a
+  // keyframe; otherwise it is discarded with the points it created.
   if (n_new <= params_.m2) {
     for (int64_t pid : created) map_.erase_point(pid);
     map_.erase_keyframe(id);
     ++stats_.keyframes_rejected;
-    return;
+    return false;
   }
   ++map_.next_kf_id;
   ++map_.kf_seq;
-  c.image.copyTo(map_.keyframes[id].image);
+  image.copyTo(map_.keyframes[id].image);
   ++stats_.keyframes_accepted;
   stats_.points_created += n_new;
-  fuse(id, related);
-  // Multi-view estimate of the new tracks (Sec. 4) and geometry of every touched point.
+  return true;
+}
+
+void Mapper::refine_new_tracks(const std::vector<int64_t>& created) {
+  // Sec. 4's track equation: a new track seen in >= 3 views (after fusion) gets the position
+  // minimising its reprojection error over all of them.
+  std::vector<Pose> poses;
+  std::vector<Eigen::Vector2d> obs;
+  std::vector<double> sig;
   for (int64_t pid : created) {
     MapPoint* p = map_.point(pid);
-    if (!p) continue;
-    if (p->obs.size() >= 3) {
-      std::vector<Pose> poses;
-      std::vector<Eigen::Vector2d> obs;
-      std::vector<double> sig;
-      for (const auto& o : p->obs) {
-        const Keyframe& k = map_.keyframes.at(o.kf);
-        poses.push_back(k.T_cam_world);
-        obs.emplace_back(k.features.un[o.feat].x, k.features.un[o.feat].y);
-        sig.push_back(k.features.scale[o.feat]);
-      }
-      Eigen::Vector3d x = p->p_world;
-      if (refine_point(K_, poses.data(), obs.data(), sig.data(), static_cast<int>(poses.size()),
-                       x) >= 0) {
-        p->p_world = x;
-      }
+    if (!p || p->obs.size() < 3) continue;
+    poses.clear();
+    obs.clear();
+    sig.clear();
+    for (const auto& o : p->obs) {
+      const Keyframe& k = map_.keyframes.at(o.kf);
+      poses.push_back(k.T_cam_world);
+      obs.emplace_back(k.features.un[o.feat].x, k.features.un[o.feat].y);
+      sig.push_back(k.features.scale[o.feat]);
+    }
+    Eigen::Vector3d x = p->p_world;
+    if (refine_point(K_, poses.data(), obs.data(), sig.data(), static_cast<int>(poses.size()), x) >=
+        0) {
+      p->p_world = x;
     }
   }
+}
+
+void Mapper::update_keyframe_points(int id) {
+  // Geometry (normal, distance range) and representative descriptor of every point the new
+  // keyframe sees: its own, the tracked ones and the fused ones.
   for (int64_t pid : map_.keyframes.at(id).point_of) {
     if (pid < 0) continue;
     MapPoint* p = map_.point(pid);
@@ -466,7 +531,11 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
     map_.update_point_geometry(*p, float(fparams_.scale_factor), fparams_.levels);
     update_descriptor(*p);
   }
-  // Local bundle adjustment: the new keyframe and its most covisible keyframes.
+}
+
+void Mapper::local_bundle_adjustment(int id) {
+  // Local BA (core/bundle_adjustment.h): the new keyframe and its most covisible keyframes,
+  // ba.window in all; then the geometry of the points they see.
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<int> window{id};
   for (const auto& [n, kid] : map_.covisible(id)) {
@@ -484,12 +553,21 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
       if (p) map_.update_point_geometry(*p, float(fparams_.scale_factor), fparams_.levels);
     }
   }
-  cull(id);
-  publish();
 }
 
 void Mapper::cull(int kf_id) {
-  // Recent points: still seen by <= 2 keyframes two keyframes after creation.
+  // Culling after a new keyframe (bounded map): recent points, then redundant keyframes among
+  // its neighbours, then the caps.
+  cull_recent_points();
+  cull_redundant_keyframes(kf_id);
+  cap_keyframes(kf_id);
+  cull_unobserved_points();
+  cap_points();
+}
+
+void Mapper::cull_recent_points() {
+  // A point seen by fewer than 2 keyframes, or still by at most 2 at the second or third
+  // keyframe after the one that created it (ORB-SLAM's rule), goes.
   std::vector<int64_t> bad;
   for (const auto& [pid, p] : map_.points) {
     const int age = map_.kf_seq - p.created_kf_seq;
@@ -497,7 +575,12 @@ void Mapper::cull(int kf_id) {
   }
   for (int64_t pid : bad) map_.erase_point(pid);
   stats_.points_culled += static_cast<int>(bad.size());
-  // Redundant or invalid keyframes (Sec. 4's 90% rule), among the new keyframe's neighbours.
+}
+
+void Mapper::cull_redundant_keyframes(int kf_id) {
+  // Sec. 4's 90% rule among the new keyframe's covisible keyframes: one (not fixed) whose
+  // points are invalid (V(X) = 0) or seen by >= 3 other keyframes for more than
+  // redundant_fraction of them goes.
   for (const auto& [n, kid] : map_.covisible(kf_id)) {
     Keyframe* k = map_.keyframe(kid);
     if (!k || k->fixed || kid == kf_id) continue;
@@ -513,7 +596,11 @@ void Mapper::cull(int kf_id) {
       ++stats_.keyframes_culled;
     }
   }
-  // Caps.
+}
+
+void Mapper::cap_keyframes(int kf_id) {
+  // Above max_keyframes the oldest keyframe goes (never the new one); the oldest left becomes
+  // the fixed gauge keyframe.
   while (static_cast<int>(map_.keyframes.size()) > params_.max_keyframes) {
     const int oldest = map_.keyframes.begin()->first;
     if (oldest == kf_id) break;
@@ -521,20 +608,27 @@ void Mapper::cull(int kf_id) {
     ++stats_.keyframes_culled;
     if (!map_.keyframes.empty()) map_.keyframes.begin()->second.fixed = true;  // new gauge
   }
-  bad.clear();
+}
+
+void Mapper::cull_unobserved_points() {
+  // Points left with fewer than 2 observations by the keyframe culling go.
+  std::vector<int64_t> bad;
   for (const auto& [pid, p] : map_.points) {
     if (p.obs.size() < 2) bad.push_back(pid);
   }
   for (int64_t pid : bad) map_.erase_point(pid);
   stats_.points_culled += static_cast<int>(bad.size());
-  if (static_cast<int>(map_.points.size()) > params_.max_points) {
-    std::vector<std::pair<std::pair<size_t, int64_t>, int64_t>> order;
-    for (const auto& [pid, p] : map_.points) order.push_back({{p.obs.size(), pid}, pid});
-    std::sort(order.begin(), order.end());
-    const size_t excess = map_.points.size() - static_cast<size_t>(params_.max_points);
-    for (size_t i = 0; i < excess; ++i) map_.erase_point(order[i].second);
-    stats_.points_culled += static_cast<int>(excess);
-  }
+}
+
+void Mapper::cap_points() {
+  // Above max_points the points with the fewest observations go, oldest (lowest id) first.
+  if (static_cast<int>(map_.points.size()) <= params_.max_points) return;
+  std::vector<std::pair<std::pair<size_t, int64_t>, int64_t>> order;
+  for (const auto& [pid, p] : map_.points) order.push_back({{p.obs.size(), pid}, pid});
+  std::sort(order.begin(), order.end());
+  const size_t excess = map_.points.size() - static_cast<size_t>(params_.max_points);
+  for (size_t i = 0; i < excess; ++i) map_.erase_point(order[i].second);
+  stats_.points_culled += static_cast<int>(excess);
 }
 
 void Mapper::publish() {

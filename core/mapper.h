@@ -1,17 +1,38 @@
-// The mapper (Sec. 3-4): takes potential keyframes from the tracker, triangulates new points
-// against the 5 most related keyframes (maximum common features) with the epipolar
-// constraint, estimates each track's 3D position by minimising its reprojection error over
-// all views (Sec. 4's track equation), accepts the frame as a keyframe only if it contributes
-// more than m2 new points (Sec. 4 condition 3), fuses observations by projection, runs local
-// bundle adjustment (core/bundle_adjustment.h), culls points and keyframes, and publishes a
-// new matching index (core/match_index.h) for the tracker.
+// The mapper (Sec. 3-4): turns the tracker's keyframe candidates (frames that met the
+// tracker's keyframe conditions, m1 among them, core/tracker.h) into keyframes, and publishes a
+// new matching index (core/match_index.h) for the tracker. A candidate goes through these
+// steps (core/mapper.cpp, one private function each):
+//  1. map updating on the candidate (Sec. 4, Algorithm 1, core/map_updater.h; only with
+//     set_change_detection): invalid points and keyframes are marked, invalid keyframes go
+//     (a map changed here is published even if the candidate is rejected);
+//  2. insert the keyframe with the tracker's point matches as observations;
+//  3. track triangulation with the related keyframes: the `related_keyframes` (5) sharing most
+//     points, topped up with the most recent ones when fewer share any. Per related keyframe:
+//     pair selection (baseline against median scene depth), epipolar matching of the free
+//     features (core/matching.h, one-to-one), then per match two-view triangulation with the
+//     parallax (`min_parallax_deg`), cheirality and reprojection checks and, with
+//     dynamic.check_new_points, a third view (a recent frame must agree); then a new point;
+//  4. condition m2 (Sec. 4 condition 3): the candidate becomes a keyframe only if it
+//     contributed more than `m2` new points; otherwise it goes with its new points;
+//  5. fusion by projection: the points of the related keyframes and of their 5 most covisible
+//     keyframes into the new keyframe, its points into the related keyframes
+//     (MatchPurpose::kFuse);
+//  6. new tracks seen in >= 3 views get the multi-view estimate (Sec. 4's track equation:
+//     reprojection error minimised over all views); the new keyframe's points get their
+//     geometry and representative descriptor updated;
+//  7. local bundle adjustment (core/bundle_adjustment.h): the new keyframe and its most
+//     covisible keyframes, `ba.window` keyframes in all;
+//  8. culling (bounded map), then publish.
 //
-// Culling (bounded map):
-//  - recent points: a point still seen by at most 2 keyframes two keyframes after its
-//    creation is removed (ORB-SLAM's rule; monocular points need a third view to be trusted);
-//  - keyframes: one whose points are invalid (V(X) = 0) or observed by at least 3 other
-//    keyframes for more than `redundant_fraction` (90%, Sec. 4) of its points is removed;
-//  - caps: above `max_keyframes` the oldest keyframe goes; above `max_points` the points
+// Culling, in this order:
+//  - recent points: a point seen by fewer than 2 keyframes, or still by at most 2 at the second
+//    or third keyframe after the one that created it, is removed (ORB-SLAM's rule; monocular
+//    points need a third view to be trusted);
+//  - keyframes: among the new keyframe's covisible keyframes, one (not fixed) whose points are
+//    invalid (V(X) = 0) or observed by at least 3 other keyframes for more than
+//    `redundant_fraction` (90%, Sec. 4) of its points is removed;
+//  - caps: above `max_keyframes` the oldest keyframe goes (the next oldest becomes the fixed
+//    gauge); points left with fewer than 2 observations go; above `max_points` the points
 //    with the fewest observations (oldest first) go.
 //
 // Ownership: the Mapper owns the Map. Threads: mapper thread only (step()); in offline runs
@@ -93,15 +114,34 @@ class Mapper {
   void account(const MapUpdateStats& u);
   int remove_invalid_keyframes();
   void handle_init(const KeyframeCandidate& c);
+  // The keyframe path (steps in order; see the header comment).
+  bool update_on_candidate(const KeyframeCandidate& c);
   void handle_keyframe(const KeyframeCandidate& c);
+  int insert_keyframe(const KeyframeCandidate& c);
   std::vector<int> related_keyframes(int kf) const;
-  // `image`: the candidate's frame (dynamic.check_new_points compares windows in it).
+  // `image`: the candidate's frame (dynamic.check_new_points compares windows in it). Appends
+  // the new points' ids to `created`; returns their number.
   int triangulate(int kf, const std::vector<int>& related, const cv::Mat& image,
                   std::vector<int64_t>& created);
+  Keyframe* triangulation_partner(const Keyframe& C, int rid);
+  void match_epipolar(const Keyframe& C, const Keyframe& R, const std::vector<char>& used);
+  bool triangulate_match(const Keyframe& C, const Keyframe& R, int j, int i, const cv::Mat& image,
+                         Eigen::Vector3d& p);
+  int64_t create_point(int kf, int rid, int j, int i, const Eigen::Vector3d& p);
+  bool accept_keyframe(int kf, int n_new, const std::vector<int64_t>& created,
+                       const cv::Mat& image);
   int fuse(int kf, const std::vector<int>& related);
   int project_and_add(int64_t pid, int kf);
+  void refine_new_tracks(const std::vector<int64_t>& created);
+  void update_keyframe_points(int kf);
   void update_descriptor(MapPoint& p) const;
+  void local_bundle_adjustment(int kf);
   void cull(int kf);
+  void cull_recent_points();
+  void cull_redundant_keyframes(int kf);
+  void cap_keyframes(int kf);
+  void cull_unobserved_points();
+  void cap_points();
   void publish();
   void fill_recent_invalid(MapSnapshot& s);
 
