@@ -16,7 +16,7 @@
 namespace rdslam {
 
 struct BundleAdjustmentParams {
-  int window = 10;          // local BA: new keyframe + this many covisible keyframes
+  int window = 10;          // local BA: keyframes in all (the new one + its best covisible)
   int max_fixed = 20;       // fixed keyframes (outside the window) kept as anchors
   int iterations = 10;      // Levenberg-Marquardt iterations per pass
   double huber_px = 2.447;  // sqrt(5.991): Huber threshold on the normalised residual

@@ -3,8 +3,8 @@
 // (Algorithm 1) needs: V(X) validity, observation lists, the keyframe where each point first
 // appeared, miss/move counters (second paper), and a per-keyframe validity flag.
 //
-// The map is bounded: MapperParams caps keyframes and points; Map::cull_* implement the
-// culling rules (docs/slam.md).
+// The map is bounded: MapperParams caps keyframes and points, and the mapper's culling steps
+// (core/mapper.h: recent points, redundant keyframes, caps) enforce them (docs/slam.md).
 //
 // Ownership: the mapper owns the Map; nobody else touches it. The tracker sees immutable
 // MapSnapshots (core/match_index.h). Threads: mapper thread only.
