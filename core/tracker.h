@@ -20,13 +20,13 @@
 //                              (`robust_per_frame`; a consensus below `robust_min_inliers` is
 //                              no model: eq. (1) from the prediction) and eq. (1)
 //     widened_motion_search    the same in twice the radius, eq. (1) only
-//     local_map_fallback       the map's points in 4 x `local_search_px`, eq. (1) only
+//     local_map_fallback       (with a map) the map's points in 4 x `local_search_px`, eq. (1)
 //     extend_with_local_map    with at least `extend_min_inliers`: every visible map point in
 //                              `local_search_px`, eq. (1), then submotion_test
 //     update_state             TRACKING (>= `min_inliers`, new velocity) or LOST
 //   handle_lost              LOST: relocalize() (at least `reloc_min_matches` global matches,
-//                            a robust consensus of `robust_min_inliers`, `reloc_min_inliers`
-//                            after refinement) or, lost too long with a tiny map, reset
+//                            `robust_min_inliers` robust inliers, `reloc_min_inliers` after
+//                            refinement) or, lost too long with a tiny map, reset_map()
 //   a found pose is then proposed as a keyframe / observation (not the initialization frame,
 //   which start_from_init sends itself) and becomes the previous frame.
 //
