@@ -366,7 +366,6 @@ bool Tracker::relocalize() {
                              static_cast<int>(reloc_pairs_.size() / 2));
   if (n < params_.reloc_min_matches) return false;
   // reloc_pairs_ holds (feature, snapshot row) pairs.
-  const int m = n;
   for (int k = 0; k < n; ++k) {
     set_correspondence(k, reloc_pairs_[2 * k], snap_->p_world[reloc_pairs_[2 * k + 1]]);
   }
@@ -374,10 +373,10 @@ bool Tracker::relocalize() {
   estimator_.reset_prior();  // the previous frames' bin prior says nothing about this view
   tight_.reset_prior();
   const int inl =
-      estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), m, T, corr_inl_.data());
+      estimator_.estimate(corr_p_.data(), corr_x_.data(), corr_s_.data(), n, T, corr_inl_.data());
   if (inl < params_.robust_min_inliers) return false;
   cur_.reset_matches(cur_.f.count);
-  for (int k = 0; k < m; ++k) {
+  for (int k = 0; k < n; ++k) {
     if (!corr_inl_[k]) continue;
     const int j = reloc_pairs_[2 * k], r = reloc_pairs_[2 * k + 1];
     cur_.pid[j] = snap_->ids[r];
@@ -571,7 +570,7 @@ TrackResult Tracker::track(const Frame& frame) {
   extract(frame);
   bool found = false;
   if (state_ == TrackingState::kInitializing) {
-    found = track_initializing(frame);  // the initialization frame is not proposed to the mapper
+    found = track_initializing(frame);  // start_from_init hands this frame to the mapper itself
   } else {
     found = state_ == TrackingState::kLost ? handle_lost() : track_with_map();
     if (found) {
@@ -589,6 +588,8 @@ TrackResult Tracker::track(const Frame& frame) {
 }
 
 void Tracker::extract(const Frame& frame) {
+  // Feature extraction (Sec. 3; ORB or SIFT, FeatureParams) on the grey image; the newest
+  // snapshot of the map's points (the mapper's bundle adjustment may have moved them).
   const cv::Mat* img = &frame.image;
   if (frame.image.type() == CV_8UC3) {
     cv::cvtColor(frame.image, gray_, cv::COLOR_BGR2GRAY);
