@@ -10,6 +10,26 @@
 // A pose is published as TRACKING/RELOCALIZED only when at least `min_inliers` 2D-3D matches
 // support it after refinement.
 //
+// track() runs these steps (private members, in this order), then fills the TrackResult once:
+//   extract                  features of the frame; the newest map snapshot
+//   track_initializing       INITIALIZING: two-view initialization (core/initializer.h)
+//   TRACKING / RELOCALIZED, a cascade around the constant-velocity prediction, each search
+//   tried while the previous one left fewer than `search_min_inliers` inliers (a search
+//   estimates a pose only from at least `search_min_matches` matches):
+//     track_with_motion_model  previous frame's points in `motion_search_px`; robust pose
+//                              (`robust_per_frame`; a consensus below `robust_min_inliers` is
+//                              no model: eq. (1) from the prediction) and eq. (1)
+//     widened_motion_search    the same in twice the radius, eq. (1) only
+//     local_map_fallback       (with a map) the map's points in 4 x `local_search_px`, eq. (1)
+//     extend_with_local_map    with at least `extend_min_inliers`: every visible map point in
+//                              `local_search_px`, eq. (1), then submotion_test
+//     update_state             TRACKING (>= `min_inliers`, new velocity) or LOST
+//   handle_lost              LOST: relocalize() (at least `reloc_min_matches` global matches,
+//                            `robust_min_inliers` robust inliers, `reloc_min_inliers` after
+//                            refinement) or, lost too long with a tiny map, reset_map()
+//   a found pose is then proposed as a keyframe / observation (not the initialization frame,
+//   which start_from_init sends itself) and becomes the previous frame.
+//
 // Matching (fast mode): projection-guided. The previous frame's tracked points are projected
 // with a constant-velocity prediction and matched in a radius (descriptor distance + ratio);
 // then every visible point of the active matching index (core/match_index.h) is projected
@@ -45,11 +65,17 @@
 namespace rdslam {
 
 struct TrackerParams {
-  int min_inliers = 30;                 // fewer: LOST
-  int reloc_min_inliers = 40;           // relocalization accepted with at least this many
-  double motion_search_px = 15.0;       // radius of the motion-model search (level-0 pixels)
-  double local_search_px = 4.0;         // radius of the map-point projection search
-  int m1 = 80;                          // paper Sec. 4: fewer common features -> potential keyframe
+  int min_inliers = 30;            // fewer: LOST
+  int reloc_min_inliers = 40;      // relocalization accepted with at least this many
+  double motion_search_px = 15.0;  // radius of the motion-model search (level-0 pixels)
+  double local_search_px = 4.0;    // radius of the map-point projection search
+  // The search cascade of Tracker::track() (see the header comment) and relocalization.
+  int search_min_matches = 15;  // matches a search needs before a pose is estimated from them
+  int search_min_inliers = 15;  // fewer inliers from a search: the next search is tried
+  int extend_min_inliers = 10;  // inliers needed to extend the pose with the local map
+  int robust_min_inliers = 10;  // a robust estimate with fewer inliers is no model
+  int reloc_min_matches = 10;   // global matches needed to attempt relocalization
+  int m1 = 80;                  // paper Sec. 4: fewer common features -> potential keyframe
   double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
@@ -106,14 +132,36 @@ class Tracker {
   void refresh_snapshot();
   int match_motion(const Pose& T, double radius);
   int match_local_map(const Pose& T, double radius);
+  // The steps of track() (see the header comment); each returns the inliers of its pose T, or
+  // whether the frame's pose was found.
+  void extract(const Frame& frame);
+  bool track_initializing(const Frame& frame);
+  bool track_with_map();
+  int track_with_motion_model(const Pose& Tpred, Pose& T);
+  int widened_motion_search(const Pose& Tpred, Pose& T);
+  int local_map_fallback(const Pose& Tpred, Pose& T);
+  int extend_with_local_map(Pose& T);
+  int submotion_test(Pose& T, int inliers);
+  bool update_state(const Pose& T, int inliers);
+  bool handle_lost();
+
+  // Correspondence k of the estimators' arrays (corr_*): feature j of cur_ and 3D point p.
+  void set_correspondence(int k, int j, const Eigen::Vector3d& p);
+  // Packs cur_'s matched features into corr_*, in feature order; returns their count.
+  int pack_matches();
   int optimise(Pose& T);
   int robust_optimise(Pose& T, const Pose& guess);
   // Drops feature j's match for this frame (robust-estimator outlier or dropped sub-motion bin).
   void reject_match(int j);
   // One pass of the coherent sub-motion test (TrackerParams::submotion_chi2) on the current
   // inliers; returns the inlier count after the refit (`inliers` when nothing is dropped) and
-  // whether anything was dropped.
+  // whether anything was dropped. Its steps: bin_residuals (per PARSAC bin, under the tight
+  // pose Te; returns the count binned and their squared-residual sum), flag_coherent_bins
+  // (returns the bins to drop) and drop_and_refit.
   int reject_submotion(Pose& T, int inliers, bool* dropped_any);
+  int bin_residuals(const Pose& Te, double* sum_sq);
+  int flag_coherent_bins(double var);
+  int drop_and_refit(Pose& T, int n, int inliers, bool* dropped_any);
   bool relocalize();
   void maybe_send_keyframe(const Frame& frame);
   // Sec. 4 per-frame map updating: every SlamLink::observe_every_n tracked frames (not on a
@@ -122,7 +170,8 @@ class Tracker {
   void maybe_send_observation(const Frame& frame);
   void start_from_init(const InitResult& init, const Frame& frame);
   void reset_map();
-  void fill_result(TrackResult& r) const;
+  // The frame's result, filled once per frame: `found` publishes cur_.T, else the last good pose.
+  void fill_result(TrackResult& r, bool found) const;
   void wait_for_mapper();
 
   TrackerParams params_;
