@@ -219,6 +219,34 @@ class MapUpdater {
   std::vector<int> triggered_;
   std::vector<int64_t> covered_;  // ids of the selected keyframes' candidates (sorted)
   std::vector<int64_t> prune_;    // points to erase at the end of the call (prune_unmatched)
+  // The steps of update() (numbered as in the comment at the top of this file) and the state
+  // of the call they share: the frame, its camera's optical axis and centre in the world, the
+  // statistics and invalidated ids being filled. Lives on update()'s stack.
+  struct Call {
+    Map& map;
+    const UpdateFrame& frame;
+    const cv::Mat& image;     // *frame.image
+    const Pose& T_cam_world;  // frame.T_cam_world
+    Eigen::Vector3d cur_z, cur_c;
+    MapUpdateStats& st;
+    std::vector<int64_t>* invalidated;
+  };
+  void moved_events(Call& c);                 // 4 (moved)
+  int select_keyframes(Call& c);              // 1
+  void collect_tracked(Call& c);              // phi(x'), 4 (still)
+  bool triggers(const Keyframe& kf);          // 1 (histogram)
+  void gather_candidates(Call& c, int nsel);  // 2
+  void gather_unselected(Call& c);            // 2 (check_all_in_view)
+  bool untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc,
+                         Eigen::Vector2d& xp) const;  // 2
+  void add_candidate(Call& c, const Keyframe& kf, int i, const MapPoint& p,
+                     const Eigen::Vector3d& pc, const Eigen::Vector2d& xp);  // 2
+  void judge_candidates(Call& c);                                            // 3, per point:
+  PointDecision judge(Call& c, const Candidate& cand, const MapPoint& p, double& d_c);
+  void apply_verdict(Call& c, const Candidate& cand, MapPoint& p, PointDecision d, double d_c);
+  void purge_confirmations(Map& map);
+  void apply_keyframe_rule(Map& map, MapUpdateStats& st);  // 5
+  void erase_pruned(Map& map, MapUpdateStats& st);         // 6
   // Consecutive change verdicts per point (confirm_checks); entries of points that became
   // invalid or were erased are purged when the table outgrows the map.
   std::unordered_map<int64_t, int> confirm_;
@@ -232,6 +260,12 @@ class MapUpdater {
   };
   // A recent frame older than stamp_ns (by at most temporal_max_gap_s) of image's size/type.
   bool usable(const Recent& r, const cv::Mat& image, int64_t stamp_ns) const;
+  // new_surface's second and third views: the usable recent frame with the widest baseline,
+  // and the one whose baseline is nearest half of it (best_b).
+  const Recent* widest_recent(const cv::Mat& image, int64_t stamp_ns, const Eigen::Vector3d& c_cur,
+                              double* baseline) const;
+  const Recent* mid_recent(const cv::Mat& image, int64_t stamp_ns, const Eigen::Vector3d& c_cur,
+                           const Recent* wide, double best_b) const;
   NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                          double depth, const cv::Mat& image, const Pose& T_cam_world,
                          int64_t stamp_ns, double* depth_seen = nullptr) const;
