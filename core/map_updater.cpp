@@ -458,6 +458,8 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     ~Remember() { u.remember(f); }
   } remember_frame{*this, frame};
 
+  // The steps of the header's list: 4 (moved events), 1, the tracked points (and 4's still
+  // events), 2, 3 with the verdicts applied per point, 5, 6.
   moved_events(c);
   const int nsel = select_keyframes(c);
   collect_tracked(c);
