@@ -18,6 +18,14 @@ constexpr int kMaxNeighbours = 64;
 // projection makes the point a duplicate (dynamic.prune_unmatched).
 constexpr double kDuplicatePx = 3.0;
 constexpr int kMaxSelected = 20;  // ChangeDetectionParams::closest_keyframes upper bound
+
+// The cause recorded for an Algorithm 1 change verdict.
+InvalidationCause cause_of(PointDecision d) {
+  return d == PointDecision::kInvalidNothingInFront ? InvalidationCause::kNothingInFront
+         : d == PointDecision::kInvalidSameObject   ? InvalidationCause::kSameObject
+         : d == PointDecision::kInvalidStaticChange ? InvalidationCause::kStaticChange
+                                                    : InvalidationCause::kNoOcclusionHandling;
+}
 }  // namespace
 
 MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K)
@@ -311,6 +319,43 @@ bool MapUpdater::recent_frames_agree(const Eigen::Vector3d& p_world, const cv::M
   return !std::isfinite(d) || d <= params_.tau_c;
 }
 
+// The usable recent frame whose camera centre is farthest from c_cur (nullptr: none);
+// *baseline receives that distance.
+const MapUpdater::Recent* MapUpdater::widest_recent(const cv::Mat& image, int64_t stamp_ns,
+                                                    const Eigen::Vector3d& c_cur,
+                                                    double* baseline) const {
+  const Recent* wide = nullptr;
+  double best_b = 0.0;
+  for (const Recent& r : history_) {
+    if (!usable(r, image, stamp_ns)) continue;
+    const double b = (r.T_cam_world.centre() - c_cur).norm();
+    if (b > best_b) {
+      best_b = b;
+      wide = &r;
+    }
+  }
+  *baseline = best_b;
+  return wide;
+}
+
+// The usable recent frame other than `wide` whose baseline to c_cur is nearest half the widest
+// (best_b); nullptr when none lies within best_b / 4 of that.
+const MapUpdater::Recent* MapUpdater::mid_recent(const cv::Mat& image, int64_t stamp_ns,
+                                                 const Eigen::Vector3d& c_cur, const Recent* wide,
+                                                 double best_b) const {
+  const Recent* mid = nullptr;
+  double mid_err = std::numeric_limits<double>::infinity();
+  for (const Recent& r : history_) {
+    if (!usable(r, image, stamp_ns) || &r == wide) continue;
+    const double e = std::abs((r.T_cam_world.centre() - c_cur).norm() - 0.5 * best_b);
+    if (e < mid_err) {
+      mid_err = e;
+      mid = &r;
+    }
+  }
+  return mid == nullptr || mid_err > 0.25 * best_b ? nullptr : mid;
+}
+
 NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                                    double depth, const cv::Mat& image, const Pose& T_cam_world,
                                    int64_t stamp_ns, double* depth_seen) const {
@@ -331,16 +376,8 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   // frame with the widest baseline, over inverse depths from far behind X (1/(4 z_X)) to well
   // in front (1/(0.25 z_X)); the best match's depth against z_X decides.
   const Eigen::Vector3d c_cur = T_cam_world.centre();
-  const Recent* wide = nullptr;
   double best_b = 0.0;
-  for (const Recent& r : history_) {
-    if (!usable(r, image, stamp_ns)) continue;
-    const double b = (r.T_cam_world.centre() - c_cur).norm();
-    if (b > best_b) {
-      best_b = b;
-      wide = &r;
-    }
-  }
+  const Recent* wide = widest_recent(image, stamp_ns, c_cur, &best_b);
   if (wide == nullptr) return NewSurface::kUnknown;
   const Eigen::Vector3d ray = T_cam_world.R.transpose() * K_.unproject(x_prime.x(), x_prime.y());
   bool ok = true;
@@ -377,17 +414,8 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   // A third view: a moving object's own motion along the epipolar line mimics a depth in two
   // views, not in three. The recent frame whose baseline is nearest half the widest must see
   // the window at the depth found too.
-  const Recent* mid = nullptr;
-  double mid_err = std::numeric_limits<double>::infinity();
-  for (const Recent& r : history_) {
-    if (!usable(r, image, stamp_ns) || &r == wide) continue;
-    const double e = std::abs((r.T_cam_world.centre() - c_cur).norm() - 0.5 * best_b);
-    if (e < mid_err) {
-      mid_err = e;
-      mid = &r;
-    }
-  }
-  if (mid == nullptr || mid_err > 0.25 * best_b) return NewSurface::kUnknown;
+  const Recent* mid = mid_recent(image, stamp_ns, c_cur, wide, best_b);
+  if (mid == nullptr) return NewSurface::kUnknown;
   const Eigen::Vector3d qm = mid->T_cam_world * (c_cur + ray * best_z);
   if (qm.z() <= 1e-9) return NewSurface::kUnknown;
   const double d_mid = appearance_difference(image, x_prime, mid->image, K_.project(qm),
@@ -415,7 +443,14 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     return st;
   }
   const cv::Mat& image = *frame.image;
-  const Pose& T_cam_world = frame.T_cam_world;
+  Call c{map,
+         frame,
+         image,
+         frame.T_cam_world,
+         frame.T_cam_world.R.row(2).transpose(),
+         frame.T_cam_world.centre(),
+         st,
+         invalidated};
   // This frame joins the recent frames of the temporal check when the call ends.
   struct Remember {
     MapUpdater& u;
@@ -423,200 +458,235 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
     ~Remember() { u.remember(f); }
   } remember_frame{*this, frame};
 
-  // Second paper's counters, matched events: a tracked point is "still", a point the robust
-  // estimator rejected in this frame is "moved" (matched where the camera motion says it is
-  // not); too many moved events in a row discard it.
-  if (params_.landmark_counters) {
-    if (params_.flow_rejection && frame.frame_no >= 0) flow_events(map, frame, st, invalidated);
-    for (int i = 0; i < frame.rejected_count; ++i) {
-      MapPoint* p = map.point(frame.rejected[i]);
-      if (p != nullptr && p->valid && counter_event(map, p->id, LandmarkEvent::kMatchedMoved)) {
-        invalidate(*p, st, invalidated, InvalidationCause::kMovedRejected);
-      }
-    }
-  }
-
-  // Candidate keyframes: valid ones with an image.
-  kf_ids_.clear();
-  z_axes_.clear();
-  centres_.clear();
-  for (auto& kv : map.keyframes) {
-    const Keyframe& kf = kv.second;
-    if (!kf.valid || kf.image.empty() || kf.image.channels() != image.channels()) continue;
-    kf_ids_.push_back(kf.id);
-    z_axes_.push_back(kf.T_cam_world.R.row(2).transpose());  // camera Z axis in world
-    centres_.push_back(kf.T_cam_world.centre());
-  }
-  // Histogram cache entries of erased keyframes are dropped (bounded by max_keyframes).
-  for (auto it = kf_hist_.begin(); it != kf_hist_.end();) {
-    it = map.keyframes.count(it->first) ? std::next(it) : kf_hist_.erase(it);
-  }
-  const Eigen::Vector3d cur_z = T_cam_world.R.row(2).transpose();
-  const Eigen::Vector3d cur_c = T_cam_world.centre();
-  const int nsel = select_closest_keyframes(
-      cur_z, cur_c, z_axes_.data(), centres_.data(), static_cast<int>(kf_ids_.size()),
-      params_.keyframe_view_angle_deg, params_.closest_keyframes, selected_.data(), kMaxSelected);
-  st.keyframes_selected = nsel;
-
-  // Tracked points of this frame: phi(x') candidates, and the set Alg. 1 skips.
-  tracked_.clear();
-  tracked_ids_sorted_.clear();
-  for (int i = 0; i < frame.count; ++i) {
-    if (frame.point_of[i] < 0) continue;
-    MapPoint* p = map.point(frame.point_of[i]);
-    if (p == nullptr) continue;
-    p->unmatched = 0;
-    const bool flowing = st.flow_computed && keep_[i] == 0;
-    if (params_.landmark_counters && !flowing) {
-      counter_event(map, p->id, LandmarkEvent::kMatchedStill);
-    }
-    const Eigen::Vector3d pc = T_cam_world * p->p_world;
-    if (pc.z() <= 1e-9) continue;
-    Tracked t;
-    t.pixel = Eigen::Vector2d(frame.un[i].x, frame.un[i].y);
-    t.p_world = p->p_world;
-    t.depth = pc.z();
-    t.id = p->id;
-    tracked_.push_back(t);
-    tracked_ids_sorted_.push_back(p->id);
-  }
+  // The steps of the header's list: 4 (moved events), 1, the tracked points (and 4's still
+  // events), 2, 3 with the verdicts applied per point, 5, 6.
+  moved_events(c);
+  const int nsel = select_keyframes(c);
+  collect_tracked(c);
   if (nsel == 0) return st;
   compute_color_histogram(image, kHistogramStride, current_hist_);
   if (!current_hist_.valid) return st;
   std::sort(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end());
   build_grid(image.cols, image.rows);
 
+  gather_candidates(c, nsel);
+  judge_candidates(c);
+  purge_confirmations(map);
+  apply_keyframe_rule(map, st);
+  erase_pruned(map, st);
+  return st;
+}
+
+// Step 4, matched events (second paper's counters): a point the robust estimator rejected in
+// this frame is "moved" (matched where the camera motion says it is not), as is, with
+// flow_rejection and a stationary camera, a tracked point on dense optical flow; too many
+// moved events in a row discard it.
+void MapUpdater::moved_events(Call& c) {
+  if (!params_.landmark_counters) return;
+  if (params_.flow_rejection && c.frame.frame_no >= 0) {
+    flow_events(c.map, c.frame, c.st, c.invalidated);
+  }
+  for (int i = 0; i < c.frame.rejected_count; ++i) {
+    MapPoint* p = c.map.point(c.frame.rejected[i]);
+    if (p != nullptr && p->valid && counter_event(c.map, p->id, LandmarkEvent::kMatchedMoved)) {
+      invalidate(*p, c.st, c.invalidated, InvalidationCause::kMovedRejected);
+    }
+  }
+}
+
+// Step 1: the valid keyframes with an image (kf_ids_, z_axes_, centres_) and, of those, the
+// `closest_keyframes` whose optical axis is within keyframe_view_angle_deg of the frame's,
+// nearest camera centres first (selected_: indices into kf_ids_). Returns their number.
+int MapUpdater::select_keyframes(Call& c) {
+  kf_ids_.clear();
+  z_axes_.clear();
+  centres_.clear();
+  for (auto& kv : c.map.keyframes) {
+    const Keyframe& kf = kv.second;
+    if (!kf.valid || kf.image.empty() || kf.image.channels() != c.image.channels()) continue;
+    kf_ids_.push_back(kf.id);
+    z_axes_.push_back(kf.T_cam_world.R.row(2).transpose());  // camera Z axis in world
+    centres_.push_back(kf.T_cam_world.centre());
+  }
+  // Histogram cache entries of erased keyframes are dropped (bounded by max_keyframes).
+  for (auto it = kf_hist_.begin(); it != kf_hist_.end();) {
+    it = c.map.keyframes.count(it->first) ? std::next(it) : kf_hist_.erase(it);
+  }
+  const int nsel = select_closest_keyframes(
+      c.cur_z, c.cur_c, z_axes_.data(), centres_.data(), static_cast<int>(kf_ids_.size()),
+      params_.keyframe_view_angle_deg, params_.closest_keyframes, selected_.data(), kMaxSelected);
+  c.st.keyframes_selected = nsel;
+  return nsel;
+}
+
+// The frame's tracked points (tracked_, tracked_ids_sorted_ unsorted): phi(x')'s candidates
+// and the set Alg. 1 skips. Step 4: each is "still" for the counters unless on flow.
+void MapUpdater::collect_tracked(Call& c) {
+  tracked_.clear();
+  tracked_ids_sorted_.clear();
+  for (int i = 0; i < c.frame.count; ++i) {
+    if (c.frame.point_of[i] < 0) continue;
+    MapPoint* p = c.map.point(c.frame.point_of[i]);
+    if (p == nullptr) continue;
+    p->unmatched = 0;
+    const bool flowing = c.st.flow_computed && keep_[i] == 0;
+    if (params_.landmark_counters && !flowing) {
+      counter_event(c.map, p->id, LandmarkEvent::kMatchedStill);
+    }
+    const Eigen::Vector3d pc = c.T_cam_world * p->p_world;
+    if (pc.z() <= 1e-9) continue;
+    Tracked t;
+    t.pixel = Eigen::Vector2d(c.frame.un[i].x, c.frame.un[i].y);
+    t.p_world = p->p_world;
+    t.depth = pc.z();
+    t.id = p->id;
+    tracked_.push_back(t);
+    tracked_ids_sorted_.push_back(p->id);
+  }
+}
+
+// The histogram trigger of keyframe kf (histogram_threshold 0: every keyframe is checked,
+// even an identical image).
+bool MapUpdater::triggers(const Keyframe& kf) {
+  const ColorHistogram& kh = keyframe_histogram(kf);
+  return kh.valid && (params_.histogram_threshold <= 0 ||
+                      histogram_difference(kh, current_hist_) > params_.histogram_threshold);
+}
+
+// An untracked point projecting into the view (window inside the image): its camera-frame
+// position and pixel. False for a point tracked in this frame (present) or out of view.
+bool MapUpdater::untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc,
+                                   Eigen::Vector2d& xp) const {
+  if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
+    return false;
+  }
   const int h = params_.window / 2;
-  const size_t min_obs = static_cast<size_t>(std::max(1, params_.min_observations));
-  // Pass 1: every valid, established, untracked point of the triggered keyframes that projects
-  // into the view, with eq. (2) against each of those keyframes where the view test passes.
-  // A point is judged once per frame on its best reference (the smallest D_c): it changed
-  // only if it looks different from every selected keyframe that saw it (deviation: the
-  // listing loops keyframe by keyframe, so one oblique or badly exposed reference view alone
-  // would invalidate a point the others still see unchanged).
+  pc = c.T_cam_world * p.p_world;
+  if (pc.z() <= 1e-9) return false;
+  xp = K_.project(pc);
+  return xp.x() >= h && xp.y() >= h && xp.x() < c.image.cols - h && xp.y() < c.image.rows - h;
+}
+
+// A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
+// (pc, xp from untracked_in_view) becomes a candidate, with eq. (2) against kf where the view
+// test lets Alg. 1 reach it.
+void MapUpdater::add_candidate(Call& c, const Keyframe& kf, int i, const MapPoint& p,
+                               const Eigen::Vector3d& pc, const Eigen::Vector2d& xp) {
+  const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
+  if (p.obs.size() < static_cast<size_t>(std::max(1, params_.min_observations))) {
+    ++c.st.points_not_established;
+    return;
+  }
+  const Eigen::Vector3d pk = kf.T_cam_world * p.p_world;
+  if (pk.z() <= 1e-9) return;
+  // The reference view must agree with the point: X reprojects onto the keyframe's feature
+  // (chi2 95% for 2 dof at the feature's scale, the mapper's own triangulation gate);
+  // otherwise X or that keyframe's pose is off and eq. (2) would compare other pixels.
+  const Eigen::Vector2d un(kf.features.un[i].x, kf.features.un[i].y);
+  const double sig = kf.features.scale[i];
+  if ((K_.project(pk) - un).squaredNorm() > 5.991 * sig * sig) {
+    ++c.st.points_inconsistent;
+    return;
+  }
+  Candidate cand;
+  cand.id = p.id;
+  cand.kf = kf.id;
+  cand.feat = i;
+  cand.n_x = (kf_c - p.p_world).normalized();
+  cand.n_xp = (c.cur_c - p.p_world).normalized();
+  cand.xp = xp;
+  cand.depth = pc.z();
+  cand.d_c = std::numeric_limits<double>::infinity();
+  // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
+  if (cand.n_x.dot(cand.n_xp) >= params_.tau_n) {
+    const cv::Point2f& kp = kf.features.kps[i].pt;
+    cand.d_c = appearance_difference(kf.image, Eigen::Vector2d(kp.x, kp.y), c.image, xp,
+                                     pk.z() / pc.z(), params_.window, params_.search_d,
+                                     params_.normalise_appearance, params_.tau_c);
+  }
+  candidates_.push_back(cand);
+}
+
+// Step 2, pass 1: every valid, established, untracked point of the triggered keyframes that
+// projects into the view, with eq. (2) against each of those keyframes where the view test
+// passes (candidates_; the checked keyframes in triggered_). A point is judged once per frame
+// on its best reference (the smallest D_c): it changed only if it looks different from every
+// selected keyframe that saw it (deviation: the listing loops keyframe by keyframe, so one
+// oblique or badly exposed reference view alone would invalidate a point the others still see
+// unchanged).
+void MapUpdater::gather_candidates(Call& c, int nsel) {
   candidates_.clear();
   triggered_.clear();
   prune_.clear();
-  // An untracked point projecting into the view (window inside the image): its camera-frame
-  // position and pixel. False for a point tracked in this frame (present) or out of view.
-  auto untracked_in_view = [&](const MapPoint& p, Eigen::Vector3d& pc, Eigen::Vector2d& xp) {
-    if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
-      return false;
-    }
-    pc = T_cam_world * p.p_world;
-    if (pc.z() <= 1e-9) return false;
-    xp = K_.project(pc);
-    return xp.x() >= h && xp.y() >= h && xp.x() < image.cols - h && xp.y() < image.rows - h;
-  };
-  // The histogram trigger of keyframe kf (histogram_threshold 0: every keyframe is checked,
-  // even an identical image).
-  auto triggers = [&](const Keyframe& kf) {
-    const ColorHistogram& kh = keyframe_histogram(kf);
-    return kh.valid && (params_.histogram_threshold <= 0 ||
-                        histogram_difference(kh, current_hist_) > params_.histogram_threshold);
-  };
-  // A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
-  // (pc, xp from untracked_in_view) becomes a candidate, with eq. (2) against kf where the view
-  // test lets Alg. 1 reach it.
-  auto add_candidate = [&](Keyframe& kf, int i, MapPoint& p, const Eigen::Vector3d& pc,
-                           const Eigen::Vector2d& xp) {
-    const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
-    if (p.obs.size() < min_obs) {
-      ++st.points_not_established;
-      return;
-    }
-    const Eigen::Vector3d pk = kf.T_cam_world * p.p_world;
-    if (pk.z() <= 1e-9) return;
-    // The reference view must agree with the point: X reprojects onto the keyframe's feature
-    // (chi2 95% for 2 dof at the feature's scale, the mapper's own triangulation gate);
-    // otherwise X or that keyframe's pose is off and eq. (2) would compare other pixels.
-    const Eigen::Vector2d un(kf.features.un[i].x, kf.features.un[i].y);
-    const double sig = kf.features.scale[i];
-    if ((K_.project(pk) - un).squaredNorm() > 5.991 * sig * sig) {
-      ++st.points_inconsistent;
-      return;
-    }
-    Candidate c;
-    c.id = p.id;
-    c.kf = kf.id;
-    c.feat = i;
-    c.n_x = (kf_c - p.p_world).normalized();
-    c.n_xp = (cur_c - p.p_world).normalized();
-    c.xp = xp;
-    c.depth = pc.z();
-    c.d_c = std::numeric_limits<double>::infinity();
-    // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
-    if (c.n_x.dot(c.n_xp) >= params_.tau_n) {
-      const cv::Point2f& kp = kf.features.kps[i].pt;
-      c.d_c = appearance_difference(kf.image, Eigen::Vector2d(kp.x, kp.y), image, xp,
-                                    pk.z() / pc.z(), params_.window, params_.search_d,
-                                    params_.normalise_appearance, params_.tau_c);
-    }
-    candidates_.push_back(c);
-  };
   for (int s = 0; s < nsel; ++s) {
-    Keyframe* kf = map.keyframe(kf_ids_[selected_[s]]);
+    Keyframe* kf = c.map.keyframe(kf_ids_[selected_[s]]);
     if (kf == nullptr) continue;
     if (!triggers(*kf)) continue;
-    ++st.keyframes_triggered;
+    ++c.st.keyframes_triggered;
     triggered_.push_back(kf->id);
     const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
     for (int i = 0; i < kn; ++i) {
       const int64_t pid = kf->point_of[i];
       if (pid < 0) continue;
-      MapPoint* p = map.point(pid);
+      MapPoint* p = c.map.point(pid);
       Eigen::Vector3d pc;
       Eigen::Vector2d xp;
-      if (p == nullptr || !p->valid || !untracked_in_view(*p, pc, xp)) continue;
-      add_candidate(*kf, i, *p, pc, xp);
+      if (p == nullptr || !p->valid || !untracked_in_view(c, *p, pc, xp)) continue;
+      add_candidate(c, *kf, i, *p, pc, xp);
     }
   }
-  if (params_.check_all_in_view) {
-    // Option: the valid points in view that none of the selected keyframes holds, each
-    // against its own nearest observing keyframe within the pre-selection's view angle. The
-    // paper checks the selected keyframes' points only: where the camera sees a place from a
-    // new viewpoint, the closest keyframes are newer ones that never saw X, and a change there
-    // (a box removed after the robot passed) would never be checked. Off by default: the points no
-    // nearby keyframe holds are also those a static surface hides from here, and Alg. 1 then
-    // invalidates more occluded points (docs/slam.md).
-    covered_.clear();
-    for (const Candidate& c : candidates_) covered_.push_back(c.id);
-    std::sort(covered_.begin(), covered_.end());
-    const double min_cos = std::cos(params_.keyframe_view_angle_deg * M_PI / 180.0);
-    for (auto& kv : map.points) {
-      MapPoint& p = kv.second;
-      Eigen::Vector3d pc;
-      Eigen::Vector2d xp;
-      if (!p.valid || std::binary_search(covered_.begin(), covered_.end(), p.id) ||
-          !untracked_in_view(p, pc, xp)) {
+  if (params_.check_all_in_view) gather_unselected(c);
+}
+
+// Option check_all_in_view: the valid points in view that none of the selected keyframes
+// holds, each against its own nearest observing keyframe within the pre-selection's view
+// angle. The paper checks the selected keyframes' points only: where the camera sees a place
+// from a new viewpoint, the closest keyframes are newer ones that never saw X, and a change
+// there (a box removed after the robot passed) would never be checked. Off by default: the
+// points no nearby keyframe holds are also those a static surface hides from here, and Alg. 1
+// then invalidates more occluded points (docs/slam.md).
+void MapUpdater::gather_unselected(Call& c) {
+  covered_.clear();
+  for (const Candidate& cand : candidates_) covered_.push_back(cand.id);
+  std::sort(covered_.begin(), covered_.end());
+  const double min_cos = std::cos(params_.keyframe_view_angle_deg * M_PI / 180.0);
+  for (auto& kv : c.map.points) {
+    MapPoint& p = kv.second;
+    Eigen::Vector3d pc;
+    Eigen::Vector2d xp;
+    if (!p.valid || std::binary_search(covered_.begin(), covered_.end(), p.id) ||
+        !untracked_in_view(c, p, pc, xp)) {
+      continue;
+    }
+    Keyframe* ref = nullptr;
+    int feat = -1;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (const Observation& o : p.obs) {
+      Keyframe* kf = c.map.keyframe(o.kf);
+      if (kf == nullptr || !kf->valid || kf->image.empty() ||
+          kf->image.channels() != c.image.channels() ||
+          Eigen::Vector3d(kf->T_cam_world.R.row(2).transpose()).dot(c.cur_z) < min_cos) {
         continue;
       }
-      Keyframe* ref = nullptr;
-      int feat = -1;
-      double best_d = std::numeric_limits<double>::infinity();
-      for (const Observation& o : p.obs) {
-        Keyframe* kf = map.keyframe(o.kf);
-        if (kf == nullptr || !kf->valid || kf->image.empty() ||
-            kf->image.channels() != image.channels() ||
-            Eigen::Vector3d(kf->T_cam_world.R.row(2).transpose()).dot(cur_z) < min_cos) {
-          continue;
-        }
-        const double d = (kf->T_cam_world.centre() - cur_c).squaredNorm();
-        if (d < best_d) {
-          best_d = d;
-          ref = kf;
-          feat = o.feat;
-        }
+      const double d = (kf->T_cam_world.centre() - c.cur_c).squaredNorm();
+      if (d < best_d) {
+        best_d = d;
+        ref = kf;
+        feat = o.feat;
       }
-      if (ref == nullptr || feat < 0 || feat >= ref->features.count || !triggers(*ref)) continue;
-      if (std::find(triggered_.begin(), triggered_.end(), ref->id) == triggered_.end()) {
-        triggered_.push_back(ref->id);
-      }
-      ++st.points_unselected;
-      add_candidate(*ref, feat, p, pc, xp);
     }
+    if (ref == nullptr || feat < 0 || feat >= ref->features.count || !triggers(*ref)) continue;
+    if (std::find(triggered_.begin(), triggered_.end(), ref->id) == triggered_.end()) {
+      triggered_.push_back(ref->id);
+    }
+    ++c.st.points_unselected;
+    add_candidate(c, *ref, feat, p, pc, xp);
   }
-  // Pass 2: per point, the best reference (view test passed and smallest D_c first).
+}
+
+// Steps 3 and 4, pass 2: each candidate point judged once, on its best reference (view test
+// passed and smallest D_c first), and the verdict applied at once, in point id order.
+void MapUpdater::judge_candidates(Call& c) {
   std::sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) {
     if (a.id != b.id) return a.id < b.id;
     const bool va = a.n_x.dot(a.n_xp) >= params_.tau_n, vb = b.n_x.dot(b.n_xp) >= params_.tau_n;
@@ -627,86 +697,107 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
   });
   for (size_t k = 0; k < candidates_.size(); ++k) {
     if (k > 0 && candidates_[k].id == candidates_[k - 1].id) continue;
-    const Candidate& c = candidates_[k];
-    MapPoint* p = map.point(c.id);
+    const Candidate& cand = candidates_[k];
+    MapPoint* p = c.map.point(cand.id);
     if (p == nullptr || !p->valid) continue;
-    const Keyframe* first = first_keyframe(map, *p);
-    Eigen::Vector2d x_first(-1e9, -1e9);
-    if (first != nullptr) {
-      const Eigen::Vector3d pf = first->T_cam_world * p->p_world;
-      if (pf.z() > 1e-9) x_first = K_.project(pf);
-    }
-    double d_c = c.d_c;
-    if (params_.ray_search && std::isfinite(d_c) && d_c > params_.tau_c) {
-      // Before calling X changed, look for its keyframe window along the keyframe's ray over
-      // X's depth uncertainty: a point triangulated from a short baseline projects a few
-      // pixels off its feature and would "change" in a static scene.
-      const Keyframe* kf = map.keyframe(c.kf);
-      if (kf != nullptr)
-        d_c = std::min(d_c, ray_difference(map, *p, *kf, c.feat, image, T_cam_world));
-    }
-    int nn = 0;
-    NewSurface seen = NewSurface::kUnknown;
-    double depth_seen = 0.0;
-    if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
-      nn = gather_neighbours(c.xp, first);
-      seen =
-          new_surface(p->p_world, c.xp, c.depth, image, T_cam_world, frame.stamp_ns, &depth_seen);
-    }
-    const PointDecision d = update_point_validity(params_, c.n_x, c.n_xp, d_c, c.depth, x_first,
-                                                  neighbours_.data(), nn, seen);
-    ++st.points_checked;
-    ++st.decisions[static_cast<int>(d)];
-    if (check_log_ != nullptr)
-      check_log_->push_back({c.id, d, seen, float(d_c), nn, float(c.depth), float(depth_seen),
-                             float(c.xp.x()), float(c.xp.y())});
-    if (is_invalidation(d)) {
-      // A change is a lasting state; a verdict caused by something passing (a moving object's
-      // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive
-      // change verdicts (1: the paper's immediate decision).
-      if (++confirm_[c.id] < params_.confirm_checks) continue;
-      confirm_.erase(c.id);
-      const InvalidationCause cause =
-          d == PointDecision::kInvalidNothingInFront ? InvalidationCause::kNothingInFront
-          : d == PointDecision::kInvalidSameObject   ? InvalidationCause::kSameObject
-          : d == PointDecision::kInvalidStaticChange ? InvalidationCause::kStaticChange
-                                                     : InvalidationCause::kNoOcclusionHandling;
-      invalidate(*p, st, invalidated, cause, d_c, c.kf);
-      continue;
-    }
-    if (d == PointDecision::kKeepSameAppearance) {
-      confirm_.erase(c.id);
-      counter_event(map, c.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
-      // Present and unoccluded, yet not tracked: counted only where the tracker would try to
-      // match it (its viewing-angle and distance gates, core/tracker.cpp match_local_map).
-      // Only where a tracked feature sits on the same pixel: X duplicates a point the tracker
-      // uses (a surface mapped twice, e.g. after relocalizing); a lone unmatched point may still
-      // be matched from another view and is kept.
-      const double dist = (cur_c - p->p_world).norm();
-      const Keyframe* kf = map.keyframe(c.kf);
-      const double r = kDuplicatePx * (kf != nullptr ? kf->features.scale[c.feat] : 1.f);
-      if (params_.prune_unmatched && p->normal.dot(c.n_xp) >= 0.5 && dist >= p->min_dist &&
-          dist <= p->max_dist && tracked_within(c.xp, r) &&
-          ++p->unmatched > params_.miss_threshold) {
-        prune_.push_back(c.id);
-      }
-    }
-    if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
-        counter_event(map, c.id, LandmarkEvent::kMissed)) {
-      // Second paper's miss counter, restricted to the one case Algorithm 1 cannot decide:
-      // X looks different and nothing tracked is near it. A moving occluder passes; when the
-      // case persists for miss_threshold checks the "occluder" has not moved on, i.e. X's
-      // surface is gone and nothing trackable replaced it (e.g. a plain wall).
-      invalidate(*p, st, invalidated, InvalidationCause::kMissed, d_c, c.kf);
+    double d_c = cand.d_c;
+    const PointDecision d = judge(c, cand, *p, d_c);
+    apply_verdict(c, cand, *p, d, d_c);
+  }
+}
+
+// Step 3 for one point: Algorithm 1 on its best reference, D_c first refined by the ray
+// search and, when X looks changed, phi(x') and the temporal check's NewSurface. `d_c` in:
+// eq. (2) against the reference; out: after the ray search.
+PointDecision MapUpdater::judge(Call& c, const Candidate& cand, const MapPoint& p, double& d_c) {
+  const Keyframe* first = first_keyframe(c.map, p);
+  Eigen::Vector2d x_first(-1e9, -1e9);
+  if (first != nullptr) {
+    const Eigen::Vector3d pf = first->T_cam_world * p.p_world;
+    if (pf.z() > 1e-9) x_first = K_.project(pf);
+  }
+  if (params_.ray_search && std::isfinite(d_c) && d_c > params_.tau_c) {
+    // Before calling X changed, look for its keyframe window along the keyframe's ray over
+    // X's depth uncertainty: a point triangulated from a short baseline projects a few
+    // pixels off its feature and would "change" in a static scene.
+    const Keyframe* kf = c.map.keyframe(cand.kf);
+    if (kf != nullptr)
+      d_c = std::min(d_c, ray_difference(c.map, p, *kf, cand.feat, c.image, c.T_cam_world));
+  }
+  int nn = 0;
+  NewSurface seen = NewSurface::kUnknown;
+  double depth_seen = 0.0;
+  if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
+    nn = gather_neighbours(cand.xp, first);
+    seen = new_surface(p.p_world, cand.xp, cand.depth, c.image, c.T_cam_world, c.frame.stamp_ns,
+                       &depth_seen);
+  }
+  const PointDecision d = update_point_validity(params_, cand.n_x, cand.n_xp, d_c, cand.depth,
+                                                x_first, neighbours_.data(), nn, seen);
+  ++c.st.points_checked;
+  ++c.st.decisions[static_cast<int>(d)];
+  if (check_log_ != nullptr)
+    check_log_->push_back({cand.id, d, seen, float(d_c), nn, float(cand.depth), float(depth_seen),
+                           float(cand.xp.x()), float(cand.xp.y())});
+  return d;
+}
+
+// Steps 3-4 and 6 for one verdict d on X (D_c = d_c): a change verdict confirmed
+// confirm_checks times in a row sets V(X) = 0; "same appearance" is a "still" event and may
+// mark X for pruning (prune_unmatched); "occluded by a moving object" is a "missed" event.
+void MapUpdater::apply_verdict(Call& c, const Candidate& cand, MapPoint& p, PointDecision d,
+                               double d_c) {
+  if (is_invalidation(d)) {
+    // A change is a lasting state; a verdict caused by something passing (a moving object's
+    // edge, motion blur, a pose glitch) is not. V(X) = 0 after confirm_checks consecutive
+    // change verdicts (1: the paper's immediate decision).
+    if (++confirm_[cand.id] < params_.confirm_checks) return;
+    confirm_.erase(cand.id);
+    invalidate(p, c.st, c.invalidated, cause_of(d), d_c, cand.kf);
+    return;
+  }
+  if (d == PointDecision::kKeepSameAppearance) {
+    confirm_.erase(cand.id);
+    counter_event(c.map, cand.id, LandmarkEvent::kMatchedStill);  // seen unchanged: present
+    // Present and unoccluded, yet not tracked: counted only where the tracker would try to
+    // match it (its viewing-angle and distance gates, core/tracker.cpp match_local_map).
+    // Only where a tracked feature sits on the same pixel: X duplicates a point the tracker
+    // uses (a surface mapped twice, e.g. after relocalizing); a lone unmatched point may still
+    // be matched from another view and is kept.
+    const double dist = (c.cur_c - p.p_world).norm();
+    const Keyframe* kf = c.map.keyframe(cand.kf);
+    const double r = kDuplicatePx * (kf != nullptr ? kf->features.scale[cand.feat] : 1.f);
+    if (params_.prune_unmatched && p.normal.dot(cand.n_xp) >= 0.5 && dist >= p.min_dist &&
+        dist <= p.max_dist && tracked_within(cand.xp, r) &&
+        ++p.unmatched > params_.miss_threshold) {
+      prune_.push_back(cand.id);
     }
   }
+  if (d == PointDecision::kKeepOccludedMoving && params_.count_missed &&
+      counter_event(c.map, cand.id, LandmarkEvent::kMissed)) {
+    // Second paper's miss counter, restricted to the one case Algorithm 1 cannot decide:
+    // X looks different and nothing tracked is near it. A moving occluder passes; when the
+    // case persists for miss_threshold checks the "occluder" has not moved on, i.e. X's
+    // surface is gone and nothing trackable replaced it (e.g. a plain wall).
+    invalidate(p, c.st, c.invalidated, InvalidationCause::kMissed, d_c, cand.kf);
+  }
+}
+
+// Confirmation counts of points that became invalid or were erased are dropped once the
+// table outgrows the map.
+void MapUpdater::purge_confirmations(Map& map) {
   if (confirm_.size() > map.points.size() + 1024) {
     for (auto it = confirm_.begin(); it != confirm_.end();) {
       const MapPoint* p = map.point(it->first);
       it = p != nullptr && p->valid ? std::next(it) : confirm_.erase(it);
     }
   }
-  // Sec. 4's 90% rule on the checked keyframes.
+}
+
+// Step 5, Sec. 4's 90% rule on the checked keyframes (triggered_): a keyframe is marked invalid
+// when its invalid points plus its valid points shared with >= 3 other keyframes exceed
+// keyframe_invalid_ratio of its points (keyframe_is_invalid).
+void MapUpdater::apply_keyframe_rule(Map& map, MapUpdateStats& st) {
   for (int kid : triggered_) {
     Keyframe* kf = map.keyframe(kid);
     if (kf == nullptr || kf->fixed || !kf->valid) continue;
@@ -727,12 +818,15 @@ MapUpdateStats MapUpdater::update(Map& map, const UpdateFrame& frame,
       ++st.keyframes_invalidated;
     }
   }
+}
+
+// Step 6: the unmatched duplicates marked by apply_verdict (prune_unmatched) are erased.
+void MapUpdater::erase_pruned(Map& map, MapUpdateStats& st) {
   for (int64_t id : prune_) {
     map.erase_point(id);
     confirm_.erase(id);
     ++st.points_pruned;
   }
-  return st;
 }
 
 }  // namespace rdslam

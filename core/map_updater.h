@@ -3,30 +3,39 @@
 // Input: one tracked frame (UpdateFrame: image, pose, the tracked features' pixels and map ids,
 // the ids PARSAC rejected). The mapper calls it for every keyframe candidate and for the
 // tracker's frame observations (every dynamic.check_every_n_frames tracked frames,
-// core/keyframe.h). Per call:
-//  1. select the `closest_keyframes` valid keyframes (optical axis within
-//     `keyframe_view_angle_deg`, nearest camera centres); a keyframe is checked when its colour
-//     histogram differs from the frame's by more than `histogram_threshold` (default 0:
-//     always, see below);
-//  2. gather the checked keyframes' valid points that are not tracked in this frame, project
-//     into the view, are observed by >= `min_observations` keyframes and reproject onto the
-//     keyframe's feature (chi2 95%); eq. (2) against each such keyframe passing the view test;
-//  3. run Algorithm 1 once per point on its best reference (smallest D_c); before a point is
-//     called changed, eq. (2) is also searched along the reference keyframe's ray over the
-//     point's depth uncertainty (`ray_search`), and the recent checked frames tell what
-//     replaced it (`temporal_check`, NewSurface: moving, static in front, static at/behind);
-//     with `require_static_evidence` only "static at/behind" lets a verdict invalidate; a
-//     change verdict must repeat in `confirm_checks` consecutive checks before V(X) = 0;
+// core/keyframe.h). Per call, update() runs these steps (private members, in this order:
+// moved_events, select_keyframes, collect_tracked, gather_candidates, judge_candidates,
+// purge_confirmations, apply_keyframe_rule, erase_pruned):
+//  1. select_keyframes: the `closest_keyframes` valid keyframes (optical axis within
+//     `keyframe_view_angle_deg`, nearest camera centres); a keyframe is checked (triggers) when
+//     its colour histogram differs from the frame's by more than `histogram_threshold`
+//     (default 0: always, see below);
+//  2. gather_candidates: the checked keyframes' valid points that are not tracked in this
+//     frame, project into the view (untracked_in_view), are observed by >= `min_observations`
+//     keyframes and reproject onto the keyframe's feature (chi2 95%); eq. (2) against each such
+//     keyframe passing the view test (add_candidate; gather_unselected with
+//     `check_all_in_view`);
+//  3. judge_candidates: per point, in id order, judge runs Algorithm 1 once on its best
+//     reference (smallest D_c); before a point is called changed, eq. (2) is also searched
+//     along the reference keyframe's ray over the point's depth uncertainty (`ray_search`), and
+//     the recent checked frames tell what replaced it (`temporal_check`, new_surface: moving,
+//     static in front, static at/behind); with `require_static_evidence` only "static
+//     at/behind" lets a verdict invalidate; apply_verdict then applies it at once: a change
+//     verdict must repeat in `confirm_checks` consecutive checks before V(X) = 0;
 //  4. the second paper's counters (`landmark_counters`): a tracked point is "still" (counts
-//     reset), a PARSAC-rejected point (or, with `flow_rejection` and a stationary camera, a
-//     tracked point on dense optical flow) is "moved", Alg. 1's "occluded by an untracked,
-//     i.e. moving, object" verdict is "missed"; above moved_threshold / miss_threshold the
-//     point is discarded (V(X) = 0);
-//  5. the 90% rule on every checked keyframe;
+//     reset; collect_tracked), a PARSAC-rejected point (or, with `flow_rejection` and a
+//     stationary camera, a tracked point on dense optical flow) is "moved" (moved_events, at
+//     the start of the call), Alg. 1's "occluded by an untracked, i.e. moving, object" verdict
+//     is "missed" (apply_verdict); above moved_threshold / miss_threshold the point is
+//     discarded (V(X) = 0);
+//  5. apply_keyframe_rule: the 90% rule on every checked keyframe;
 //  6. with `prune_unmatched`, points in view and unchanged (D_c <= tau_c) that are not tracked
 //     while a tracked feature lies within 3 px of their projection (duplicates of a point the
-//     tracker uses), in more than `miss_threshold` consecutive checks, are erased from the map
-//     (pruned: MapUpdateStats::points_pruned; the second paper's miss counter).
+//     tracker uses), in more than `miss_threshold` consecutive checks, are marked by
+//     apply_verdict and erased from the map by erase_pruned (MapUpdateStats::points_pruned;
+//     the second paper's miss counter).
+// The steps share the call's state through MapUpdater::Call (on update()'s stack) and the
+// scratch members; the frame joins the recent frames (remember) when the call ends.
 // Invalid points leave the matching index at the mapper's next publish (core/mapper.cpp skips
 // !valid; an observation that invalidated points publishes at once); invalid keyframes are
 // removed by the mapper. With `map_update = false` update() changes nothing (Figure 9
@@ -232,6 +241,12 @@ class MapUpdater {
   };
   // A recent frame older than stamp_ns (by at most temporal_max_gap_s) of image's size/type.
   bool usable(const Recent& r, const cv::Mat& image, int64_t stamp_ns) const;
+  // new_surface's second and third views: the usable recent frame with the widest baseline,
+  // and the one whose baseline is nearest half of it (best_b).
+  const Recent* widest_recent(const cv::Mat& image, int64_t stamp_ns, const Eigen::Vector3d& c_cur,
+                              double* baseline) const;
+  const Recent* mid_recent(const cv::Mat& image, int64_t stamp_ns, const Eigen::Vector3d& c_cur,
+                           const Recent* wide, double best_b) const;
   NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
                          double depth, const cv::Mat& image, const Pose& T_cam_world,
                          int64_t stamp_ns, double* depth_seen = nullptr) const;
@@ -246,6 +261,39 @@ class MapUpdater {
   std::vector<uint8_t> keep_;
   std::vector<InvalidationRecord>* records_ = nullptr;  // of the update() call in progress
   std::vector<CheckRecord>* check_log_ = nullptr;
+
+  // The steps of update() (numbered as in the comment at the top of this file) and the state
+  // of the call they share: the frame, its camera's optical axis and centre in the world, the
+  // statistics and invalidated ids being filled. Lives on update()'s stack.
+  struct Call {
+    Map& map;
+    const UpdateFrame& frame;
+    const cv::Mat& image;     // *frame.image
+    const Pose& T_cam_world;  // frame.T_cam_world
+    Eigen::Vector3d cur_z, cur_c;
+    MapUpdateStats& st;
+    std::vector<int64_t>* invalidated;
+  };
+  void moved_events(Call& c);     // 4: rejected / on flow -> "moved"
+  int select_keyframes(Call& c);  // 1
+  void collect_tracked(Call& c);  // phi(x')'s candidates; 4: tracked -> "still"
+  // 2: candidates_ and triggered_ from the selected (and, with check_all_in_view, other)
+  // keyframes.
+  void gather_candidates(Call& c, int nsel);
+  void gather_unselected(Call& c);
+  bool triggers(const Keyframe& kf);
+  bool untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc,
+                         Eigen::Vector2d& xp) const;
+  void add_candidate(Call& c, const Keyframe& kf, int i, const MapPoint& p,
+                     const Eigen::Vector3d& pc, const Eigen::Vector2d& xp);
+  // 3: per candidate point, judge (Algorithm 1) then apply_verdict (confirmation, V(X) = 0,
+  // the counters' "still"/"missed", marking for 6).
+  void judge_candidates(Call& c);
+  PointDecision judge(Call& c, const Candidate& cand, const MapPoint& p, double& d_c);
+  void apply_verdict(Call& c, const Candidate& cand, MapPoint& p, PointDecision d, double d_c);
+  void purge_confirmations(Map& map);
+  void apply_keyframe_rule(Map& map, MapUpdateStats& st);  // 5
+  void erase_pruned(Map& map, MapUpdateStats& st);         // 6
 };
 
 }  // namespace rdslam
