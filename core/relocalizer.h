@@ -2,11 +2,12 @@
 // matched against all reference features of the active matching index. SIFT mode queries the
 // index's FLANN KD-tree for the two nearest neighbours and applies the paper's matching
 // confidence c = d1/d2 < 0.6; ORB mode compares against every point (Hamming distance,
-// popcount) with a 2-NN ratio of 0.75. The tracker then estimates the pose robustly from the
-// pairs (core/pose_estimation.h) and extends the matches by projection.
+// popcount) with its 2-NN ratio (matching.orb_reloc_*, core/matching.h). The tracker then estimates
+// the pose robustly from the pairs (core/pose_estimation.h) and extends the matches by projection.
 //
-// Ownership: pure function over caller buffers. Threads: tracker thread. SIFT mode allocates
-// (FLANN); ORB mode does not.
+// Ownership: pure function over caller buffers. Threads: tracker thread. Allocates: one byte
+// per snapshot row to keep one feature per map point (both modes), and FLANN's result
+// matrices in SIFT mode.
 #pragma once
 
 #include "core/features.h"
