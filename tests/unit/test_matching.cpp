@@ -73,8 +73,9 @@ TEST(Matching, PredictedLevelIsClampedScalePrediction) {
   const double log_sf = std::log(1.2);
   // A point first seen at level 0 from 1 m: max_dist = 1.2 m * 1.2^0; from 1 m it is at level 0.
   EXPECT_EQ(predict_level(1.2, 1.0, log_sf, 4), 0);
-  // From 1/1.2^2 m it appears 1.44x larger: level 2.
-  EXPECT_EQ(predict_level(1.2, 1.0 / 1.44, log_sf, 4), 2);
+  // From 1/1.3 m it appears 1.3x larger: between levels 1 and 2, rounded up to 2.
+  EXPECT_EQ(predict_level(1.2, 1.0 / 1.3, log_sf, 4), 2);
+  EXPECT_EQ(predict_level(1.2, 1.0 / 1.1, log_sf, 4), 1);
   EXPECT_EQ(predict_level(1.2, 1e-3, log_sf, 4), 3);  // clamped to the top level
   EXPECT_EQ(predict_level(1.2, 100.0, log_sf, 4), 0);
 }
