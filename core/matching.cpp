@@ -31,27 +31,28 @@ void MatchingParams::visit(ParamVisitor& v) {
                                                    "triangulation along epipolar lines (mapper)",
                                                    "map point fused into a keyframe (mapper)",
                                                    "global relocalization search"};
-  // Keys and help texts live as long as the process (ParamVisitor takes C strings).
-  static std::vector<std::string> keys, docs;
-  if (keys.empty()) {
-    for (const char* mode : {"orb", "sift"}) {
+  static const char* const kMode[2] = {"orb", "sift"};
+  static const char* const kUnit[2] = {"max Hamming distance (of 256)", "max L2 distance"};
+  // Keys and help texts live as long as the process (ParamVisitor takes C strings); built once
+  // (thread-safe static initialisation), two entries per rule in the order visited below.
+  static const std::vector<std::string> text = [] {
+    std::vector<std::string> t;
+    for (int m = 0; m < 2; ++m) {
       for (int p = 0; p < kMatchPurposes; ++p) {
-        const std::string base = std::string(mode) + "_" + to_string(MatchPurpose(p));
-        keys.push_back(base + "_max_distance");
-        docs.push_back(std::string(mode == std::string("orb") ? "max Hamming distance (of 256)"
-                                                              : "max L2 distance") +
-                       ": " + kDoc[p]);
-        keys.push_back(base + "_ratio");
-        docs.push_back(std::string("2-NN ratio (1 = off): ") + kDoc[p]);
+        const std::string base = std::string(kMode[m]) + "_" + to_string(MatchPurpose(p)) + "_";
+        t.insert(t.end(), {base + "max_distance", std::string(kUnit[m]) + ": " + kDoc[p],
+                           base + "ratio", std::string("2-NN ratio (1 = off): ") + kDoc[p]});
       }
     }
-  }
+    return t;
+  }();
+  MatchRule* const rules[2] = {orb, sift};
+  const double max_hi[2] = {256.0, 1000.0};
   size_t k = 0;
-  for (MatchRule* rules : {orb, sift}) {
-    const double max_hi = rules == orb ? 256.0 : 1000.0;
-    for (int p = 0; p < kMatchPurposes; ++p, k += 2) {
-      v.field(keys[k].c_str(), rules[p].max_distance, 1.0, max_hi, docs[k].c_str());
-      v.field(keys[k + 1].c_str(), rules[p].ratio, 0.1, 1.0, docs[k + 1].c_str());
+  for (int m = 0; m < 2; ++m) {
+    for (int p = 0; p < kMatchPurposes; ++p, k += 4) {
+      v.field(text[k].c_str(), rules[m][p].max_distance, 1.0, max_hi[m], text[k + 1].c_str());
+      v.field(text[k + 2].c_str(), rules[m][p].ratio, 0.1, 1.0, text[k + 3].c_str());
     }
   }
 }
