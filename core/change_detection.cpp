@@ -39,8 +39,6 @@ void ChangeDetectionParams::visit(ParamVisitor& v) {
           "relative depth below the point's that counts as an occluder in front");
   v.field("r1", r1, 1.0, 200.0, "radius of phi(x') in pixels");
   v.field("r2", r2, 1.0, 200.0, "first-keyframe distance threshold in pixels");
-  v.field("keyframe_invalid_ratio", keyframe_invalid_ratio, 0.0, 1.0,
-          "invalid+shared point ratio that invalidates a keyframe");
   v.field("check_every_n_frames", check_every_n_frames, 0, 1000,
           "tracked frames between per-frame map updates (0: keyframe candidates only)");
   v.field("min_observations", min_observations, 1, 100,

@@ -89,9 +89,8 @@ struct ChangeDetectionParams {
   // on an object that moved between them (along the epipolar line) from a static one at
   // another depth; a third view can. Undecidable (no recent frame, outside the image) keeps.
   bool check_new_points = true;
-  double r1 = 20.0;                     // phi(x'): tracked points within r1 pixels of x'
-  double r2 = 20.0;                     // |x_p - y_p| < r2 in the keyframe where X first appeared
-  double keyframe_invalid_ratio = 0.9;  // invalid + shared points above 90% -> keyframe invalid
+  double r1 = 20.0;  // phi(x'): tracked points within r1 pixels of x'
+  double r2 = 20.0;  // |x_p - y_p| < r2 in the keyframe where X first appeared
   // Per-frame updating (core/map_updater.h): the tracker hands the mapper every n-th tracked
   // frame (0: keyframe candidates only, as before).
   int check_every_n_frames = 3;
@@ -260,13 +259,6 @@ PointDecision update_point_validity(const ChangeDetectionParams& p, const Eigen:
                                     const Eigen::Vector3d& n_x_prime, double d_c, double depth_x,
                                     const Eigen::Vector2d& x_p, const NeighbourPoint* neighbours,
                                     int neighbour_count, NewSurface seen = NewSurface::kUnknown);
-
-// "If the number of invalid 3D points and the common features shared with other keyframes is
-// larger than 90% of its total point number, we will label this keyframe as invalid."
-inline bool keyframe_is_invalid(int invalid_points, int shared_points, int total_points,
-                                double ratio) {
-  return total_points > 0 && (invalid_points + shared_points) > ratio * total_points;
-}
 
 // Second paper, Sec. 4.2: per-landmark counters.
 struct LandmarkCounters {

@@ -123,6 +123,18 @@ void Map::update_point_geometry(MapPoint& p, float scale_factor, int levels) con
       p.max_dist / std::pow(scale_factor, static_cast<float>(std::max(1, levels - 1))) / 1.44f;
 }
 
+Map::Redundancy Map::redundancy(const Keyframe& kf) const {
+  Redundancy r;
+  for (int64_t pid : kf.point_of) {
+    if (pid < 0) continue;
+    const auto it = points.find(pid);
+    if (it == points.end()) continue;
+    ++r.total;
+    if (!it->second.valid || it->second.obs.size() >= 4) ++r.redundant;
+  }
+  return r;
+}
+
 int Map::count_valid_points() const {
   int n = 0;
   for (const auto& kv : points) n += kv.second.valid ? 1 : 0;

@@ -74,6 +74,15 @@ class Map {
   // Recomputes the normal and distance range from the observations.
   void update_point_geometry(MapPoint& p, float scale_factor, int levels) const;
   int count_valid_points() const;
+  // Sec. 4's 90% rule, counted once for the mapper's culling and the map updater's keyframe
+  // check (core/mapper.h, core/map_updater.h).
+  struct Redundancy {
+    int redundant = 0;  // points invalid (V(X) = 0) or seen by >= 3 other keyframes
+    int total = 0;      // features of the keyframe with a map point
+    // "larger than 90% of its total point number" (fraction = mapper.redundant_fraction)
+    bool exceeds(double fraction) const { return total > 0 && redundant > fraction * total; }
+  };
+  Redundancy redundancy(const Keyframe& kf) const;
 };
 
 }  // namespace rdslam

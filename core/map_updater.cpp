@@ -28,8 +28,9 @@ InvalidationCause cause_of(PointDecision d) {
 }
 }  // namespace
 
-MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K)
-    : params_(params), K_(K) {
+MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K,
+                       double redundant_fraction)
+    : params_(params), K_(K), redundant_fraction_(redundant_fraction) {
   // Algorithm 1 compares D_c with the threshold of the score in use.
   if (params_.normalise_appearance) params_.tau_c = params_.tau_c_relative;
   cell_px_ = std::max(params_.r1, 4.0);
@@ -794,26 +795,14 @@ void MapUpdater::purge_confirmations(Map& map) {
   }
 }
 
-// Step 5, Sec. 4's 90% rule on the checked keyframes (triggered_): a keyframe is marked invalid
-// when its invalid points plus its valid points shared with >= 3 other keyframes exceed
-// keyframe_invalid_ratio of its points (keyframe_is_invalid).
+// Step 5, Sec. 4's 90% rule (Map::redundancy, the mapper's culling rule) on the checked
+// keyframes (triggered_): a keyframe whose invalid points plus points shared with >= 3 other
+// keyframes exceed redundant_fraction of its points is marked invalid; the mapper replaces it.
 void MapUpdater::apply_keyframe_rule(Map& map, MapUpdateStats& st) {
   for (int kid : triggered_) {
     Keyframe* kf = map.keyframe(kid);
     if (kf == nullptr || kf->fixed || !kf->valid) continue;
-    int invalid = 0, shared = 0, total = 0;
-    const int kn = std::min<int>(kf->features.count, static_cast<int>(kf->point_of.size()));
-    for (int i = 0; i < kn; ++i) {
-      const MapPoint* p = kf->point_of[i] >= 0 ? map.point(kf->point_of[i]) : nullptr;
-      if (p == nullptr) continue;
-      ++total;
-      if (!p->valid) {
-        ++invalid;
-      } else if (p->obs.size() >= 4) {
-        ++shared;
-      }
-    }
-    if (keyframe_is_invalid(invalid, shared, total, params_.keyframe_invalid_ratio)) {
+    if (map.redundancy(*kf).exceeds(redundant_fraction_)) {
       kf->valid = false;
       ++st.keyframes_invalidated;
     }

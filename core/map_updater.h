@@ -49,8 +49,9 @@
 // miss counter restricted to Alg. 1's undecidable case (a plain "not matched" count would
 // discard every point occluded for a few frames, against Alg. 1's purpose).
 //
-// "Shared" points of the 90% rule are those observed by at least 3 other keyframes, the same
-// reading as the mapper's keyframe culling (core/mapper.h).
+// The 90% rule is one rule with one key (mapper.redundant_fraction): Map::redundancy counts
+// invalid points and points observed by at least 3 other keyframes; the mapper culls covisible
+// keyframes of a new keyframe by it, and this step marks checked keyframes invalid by it.
 //
 // Pixels: the map stores undistorted feature coordinates and raw images; the appearance test
 // uses the raw keypoint in the keyframe and the ideal projection in the current frame, exact
@@ -149,7 +150,10 @@ class MapUpdater {
   // Diagnostics: every Algorithm 1 verdict is appended to `log` (nullptr: off, the default;
   // appending allocates, so tests and tools only).
   void set_check_log(std::vector<CheckRecord>* log) { check_log_ = log; }
-  MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K);
+  // `redundant_fraction` is the keyframe-redundancy fraction of Sec. 4's 90% rule
+  // (mapper.redundant_fraction, Map::redundancy), shared with the mapper's keyframe culling.
+  MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K,
+             double redundant_fraction = 0.9);
 
   // One frame: `image` is the frame (same channel count as the keyframe images), T_cam_world
   // its estimated pose, `features`/`point_of` the frame's features and, per feature, the
@@ -204,6 +208,7 @@ class MapUpdater {
 
   ChangeDetectionParams params_;
   PinholeIntrinsics K_;
+  double redundant_fraction_ = 0.9;
   ColorHistogram current_hist_;
   std::unordered_map<int, ColorHistogram> kf_hist_;
   // Scratch (reused every frame).

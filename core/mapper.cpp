@@ -20,7 +20,8 @@ void MapperParams::visit(ParamVisitor& v) {
   v.field("max_points", max_points, 100, 10000000, "cap on map points");
   v.field("min_parallax_deg", min_parallax_deg, 0.0, 45.0, "triangulation angle of new points");
   v.field("redundant_fraction", redundant_fraction, 0.0, 1.0,
-          "keyframe culling: invalid or shared points above this fraction (Sec. 4: 90%)");
+          "Sec. 4's 90% rule: invalid or shared points above this fraction cull the keyframe "
+          "(mapper) or mark it invalid (map updating)");
   PrefixVisitor ba_v(v, "ba_");
   ba.visit(ba_v);
 }
@@ -35,7 +36,8 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
 }
 
 void Mapper::set_change_detection(const ChangeDetectionParams& p) {
-  updater_ = p.needs_updater() ? std::make_unique<MapUpdater>(p, K_) : nullptr;
+  updater_ =
+      p.needs_updater() ? std::make_unique<MapUpdater>(p, K_, params_.redundant_fraction) : nullptr;
 }
 
 bool Mapper::step(int timeout_ms) {
@@ -578,20 +580,14 @@ void Mapper::cull_recent_points() {
 }
 
 void Mapper::cull_redundant_keyframes(int kf_id) {
-  // Sec. 4's 90% rule among the new keyframe's covisible keyframes: one (not fixed) whose
-  // points are invalid (V(X) = 0) or seen by >= 3 other keyframes for more than
-  // redundant_fraction of them goes.
+  // Sec. 4's 90% rule (Map::redundancy) among the new keyframe's covisible keyframes: one (not
+  // fixed) whose points are invalid or seen by >= 3 other keyframes for more than
+  // redundant_fraction of them goes. The map updater applies the same rule to the keyframes
+  // whose points it checked.
   for (const auto& [n, kid] : map_.covisible(kf_id)) {
     Keyframe* k = map_.keyframe(kid);
     if (!k || k->fixed || kid == kf_id) continue;
-    int total = 0, redundant = 0;
-    for (int64_t pid : k->point_of) {
-      const MapPoint* p = pid >= 0 ? map_.point(pid) : nullptr;
-      if (!p) continue;
-      ++total;
-      if (!p->valid || p->obs.size() >= 4) ++redundant;  // seen by >= 3 other keyframes
-    }
-    if (total > 0 && redundant > params_.redundant_fraction * total) {
+    if (map_.redundancy(*k).exceeds(params_.redundant_fraction)) {
       map_.erase_keyframe(kid);
       ++stats_.keyframes_culled;
     }

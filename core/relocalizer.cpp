@@ -1,5 +1,6 @@
 #include "core/relocalizer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -8,7 +9,7 @@
 namespace rdslam {
 
 int global_match(const Features& f, const MapSnapshot& snap, const FeatureParams& params,
-                 int* pairs, int cap) {
+                 GlobalMatchScratch& scratch, int* pairs, int cap) {
   const int rows = snap.rows();
   if (rows < 2 || f.count == 0) return 0;
   int n = 0;
@@ -24,7 +25,8 @@ int global_match(const Features& f, const MapSnapshot& snap, const FeatureParams
     }
   } else {
     if (!snap.kdtree) return 0;
-    cv::Mat idx, dist;
+    cv::Mat& idx = scratch.idx;
+    cv::Mat& dist = scratch.dist;
     snap.kdtree->knnSearch(f.desc.rowRange(0, f.count), idx, dist, 2, cv::flann::SearchParams(32));
     for (int j = 0; j < f.count && n < cap; ++j) {
       // Paper Sec. 3: matched when c = ||p(x) - p(N1)|| / ||p(x) - p(N2)|| < 0.6.
@@ -41,7 +43,9 @@ int global_match(const Features& f, const MapSnapshot& snap, const FeatureParams
   }
   // One feature per map point: keep the first claim (rare duplicates are harmless for RANSAC
   // but would double-count inliers).
-  std::vector<char> used(static_cast<size_t>(rows), 0);
+  std::vector<uint8_t>& used = scratch.used;
+  if (used.size() < static_cast<size_t>(rows)) used.resize(static_cast<size_t>(rows));
+  std::fill(used.begin(), used.begin() + rows, uint8_t{0});
   int k = 0;
   for (int i = 0; i < n; ++i) {
     const int r = pairs[2 * i + 1];

@@ -362,7 +362,7 @@ int Tracker::drop_and_refit(Pose& T, int n, int inliers, bool* dropped_any) {
 
 bool Tracker::relocalize() {
   if (!snap_ || snap_->rows() < params_.reloc_min_inliers) return false;
-  const int n = global_match(cur_.f, *snap_, fparams_, reloc_pairs_.data(),
+  const int n = global_match(cur_.f, *snap_, fparams_, reloc_scratch_, reloc_pairs_.data(),
                              static_cast<int>(reloc_pairs_.size() / 2));
   if (n < params_.reloc_min_matches) return false;
   // reloc_pairs_ holds (feature, snapshot row) pairs.

@@ -60,6 +60,7 @@
 #include "core/keyframe.h"
 #include "core/params.h"
 #include "core/pose_estimation.h"
+#include "core/relocalizer.h"
 #include "core/stages.h"
 
 namespace rdslam {
@@ -218,8 +219,9 @@ class Tracker {
   std::vector<int> corr_feat_;
   std::vector<uint8_t> corr_inl_;
   std::vector<int> reloc_pairs_;
-  cv::Mat ref_image_;               // image of the initializer's reference frame
-  std::vector<int64_t> row_stamp_;  // per snapshot row: frame_no_ when matched this frame
+  GlobalMatchScratch reloc_scratch_;  // grows to the largest snapshot once
+  cv::Mat ref_image_;                 // image of the initializer's reference frame
+  std::vector<int64_t> row_stamp_;    // per snapshot row: frame_no_ when matched this frame
   // Per snapshot row: track_no_ of the frame whose robust estimate rejected the point.
   std::vector<int64_t> row_rejected_;
   int64_t track_no_ = 0;  // frames tracked (frame_no_ also advances between search passes)

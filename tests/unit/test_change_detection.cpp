@@ -190,12 +190,6 @@ TEST_F(Algorithm1, RequireStaticEvidenceGatesTheNeighbourVerdicts) {
             PointDecision::kInvalidNothingInFront);
 }
 
-TEST(KeyframeValidity, InvalidAboveNinetyPercent) {
-  EXPECT_FALSE(keyframe_is_invalid(40, 50, 100, 0.9));
-  EXPECT_TRUE(keyframe_is_invalid(41, 50, 100, 0.9));
-  EXPECT_FALSE(keyframe_is_invalid(0, 0, 0, 0.9));
-}
-
 TEST(LandmarkCounters, MissAndMovedThresholdsAsInTheSecondPaper) {
   LandmarkCounters c;
   for (int i = 0; i < 10; ++i)

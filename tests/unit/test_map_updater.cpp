@@ -304,8 +304,7 @@ TEST(MapUpdater, KeyframeInvalidatedAboveNinetyPercent) {
   // keeps the keyframe, a 50% ratio invalidates it.
   Scene s = make_scene(1.5);
   track_neighbours(s, 3.0);
-  ChangeDetectionParams p = paper_params();
-  p.keyframe_invalid_ratio = 0.5;  // object points are ~60% of the keyframe's points
+  const double fraction = 0.5;  // object points are ~60% of the keyframe's points
   const double frac = double(s.object_ids.size()) / (s.object_ids.size() + s.static_ids.size());
   ASSERT_GT(frac, 0.5);
   ASSERT_LT(frac, 0.9);
@@ -318,7 +317,7 @@ TEST(MapUpdater, KeyframeInvalidatedAboveNinetyPercent) {
     EXPECT_EQ(st.keyframes_invalidated, 0);
     EXPECT_TRUE(s90.map.keyframe(0)->valid);
   }
-  MapUpdater u(p, intrinsics());
+  MapUpdater u(paper_params(), intrinsics(), fraction);
   const MapUpdateStats st =
       u.update(s.map, changed_image(s.kf_image), Pose{}, s.cur, s.cur_point_of);
   EXPECT_EQ(st.keyframes_invalidated, 1);
