@@ -89,7 +89,7 @@ int Mapper::remove_invalid_keyframes() {
   }
   for (int id : bad) {
     if (map_.keyframes.size() <= 2) break;  // keep a map to track against
-    map_.erase_keyframe(id);
+    retire_keyframe(id);
     ++stats_.keyframes_replaced;
     ++stats_.keyframes_culled;
   }
@@ -123,6 +123,7 @@ void Mapper::process(const KeyframeCandidate& c) {
   switch (c.kind) {
     case KeyframeCandidate::Kind::kReset:
       map_ = Map();
+      trail_.clear();
       if (updater_) updater_->reset();
       epoch_ = c.epoch;
       link_->keyframes.store(0);
@@ -163,6 +164,7 @@ bool Mapper::update_on_candidate(const KeyframeCandidate& c) {
 
 void Mapper::handle_init(const KeyframeCandidate& c) {
   map_ = Map();
+  trail_.clear();
   epoch_ = c.epoch;
   Keyframe& k0 = map_.keyframes[0];
   k0.id = 0;
@@ -588,10 +590,42 @@ void Mapper::cull_redundant_keyframes(int kf_id) {
     Keyframe* k = map_.keyframe(kid);
     if (!k || k->fixed || kid == kf_id) continue;
     if (map_.redundancy(*k).exceeds(params_.redundant_fraction)) {
-      map_.erase_keyframe(kid);
+      retire_keyframe(kid);
       ++stats_.keyframes_culled;
     }
   }
+}
+
+void Mapper::retire_keyframe(int kid) {
+  // With the trail on, a removed keyframe leaves its pose relative to the keyframe sharing most
+  // points with it, so final_keyframe_pose() can place frames that referred to it.
+  if (keep_trail_) {
+    const Keyframe* k = map_.keyframe(kid);
+    for (const auto& [n, pid] : map_.covisible(kid)) {
+      const Keyframe* parent = map_.keyframe(pid);
+      if (pid == kid || parent == nullptr) continue;
+      trail_[kid] = Trail{pid, k->T_cam_world * parent->T_cam_world.inverse()};
+      break;
+    }
+  }
+  map_.erase_keyframe(kid);
+}
+
+bool Mapper::final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const {
+  if (epoch != epoch_) return false;
+  Pose T_id_cur;  // pose of keyframe `id` relative to the keyframe reached so far
+  int cur = id;
+  for (int hops = 0; hops <= static_cast<int>(trail_.size()); ++hops) {
+    if (const auto k = map_.keyframes.find(cur); k != map_.keyframes.end()) {
+      *T_cam_world = T_id_cur * k->second.T_cam_world;
+      return true;
+    }
+    const auto t = trail_.find(cur);
+    if (t == trail_.end()) return false;
+    T_id_cur = T_id_cur * t->second.T_kf_parent;
+    cur = t->second.parent;
+  }
+  return false;
 }
 
 void Mapper::cap_keyframes(int kf_id) {
@@ -600,7 +634,7 @@ void Mapper::cap_keyframes(int kf_id) {
   while (static_cast<int>(map_.keyframes.size()) > params_.max_keyframes) {
     const int oldest = map_.keyframes.begin()->first;
     if (oldest == kf_id) break;
-    map_.erase_keyframe(oldest);
+    retire_keyframe(oldest);
     ++stats_.keyframes_culled;
     if (!map_.keyframes.empty()) map_.keyframes.begin()->second.fixed = true;  // new gauge
   }

@@ -41,6 +41,7 @@
 
 #include <deque>
 #include <memory>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -101,6 +102,15 @@ class Mapper {
   // check_new_points on, the observations only feed the new-point check. Call before the
   // first step().
   void set_change_detection(const ChangeDetectionParams& p);
+  // Final trajectory (replay, evaluation): with the trail on, every keyframe the mapper removes
+  // leaves its pose relative to its most covisible keyframe (one small entry per removed
+  // keyframe, cleared at a map reset; a growth a days-long run must not have, so it is off by
+  // default). final_keyframe_pose() then gives the pose a keyframe of the current map epoch
+  // has in the final map, through that chain for removed ones (ORB-SLAM's way of writing its
+  // per-frame trajectory); false for another epoch or an unknown id. Call both while the
+  // mapper thread is not running (before the first step(), after the last).
+  void set_keep_trail(bool on) { keep_trail_ = on; }
+  bool final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const;
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
   // Diagnostics: every Algorithm 1 verdict (core/map_updater.h CheckRecord); tests only.
@@ -139,6 +149,7 @@ class Mapper {
   void cull(int kf);
   void cull_recent_points();
   void cull_redundant_keyframes(int kf);
+  void retire_keyframe(int kid);  // erase_keyframe, leaving a trail entry when keep_trail_
   void cap_keyframes(int kf);
   void cull_unobserved_points();
   void cap_points();
@@ -156,6 +167,13 @@ class Mapper {
   std::vector<int> cand_;
   ClaimTable claims_;  // triangulation: new keyframe feature -> related keyframe feature
   std::unique_ptr<MapUpdater> updater_;
+  struct Trail {
+    int parent = -1;
+    Pose T_kf_parent;  // removed keyframe's pose relative to `parent` when it was removed
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  bool keep_trail_ = false;
+  std::unordered_map<int, Trail> trail_;
   std::vector<InvalidationRecord>* inval_log_ = nullptr;
   // Debug output only (SlamLink::debug_recent_invalid > 0): points seen invalid at a publish,
   // oldest first, bounded; and which ids were already listed (this map epoch).

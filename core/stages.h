@@ -37,6 +37,14 @@ struct TrackResult {
   int keyframes = 0;                    // valid keyframes (for status)
   int64_t invalidated_points = 0;       // cumulative
   double mapper_wait_ms = 0.0;  // time track() blocked on the mapper (tracker.sync_mapper only)
+  // The reference keyframe (the one sharing most of this frame's tracked points) of map epoch
+  // `epoch`, and the frame's pose relative to it when tracked (camera -> reference keyframe);
+  // -1 when the frame has none (not tracked, no keyframes yet). Evaluation re-anchors the
+  // frame on the keyframe's final pose (MapperStage::final_keyframe_pose).
+  int ref_keyframe = -1;
+  uint32_t epoch = 0;
+  Eigen::Quaterniond q_ref_cam{1, 0, 0, 0};
+  Eigen::Vector3d p_ref_cam{0, 0, 0};
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
@@ -58,6 +66,15 @@ class MapperStage {
  public:
   virtual ~MapperStage() = default;
   virtual bool step(int timeout_ms) = 0;
+  // Final trajectory (evaluation; core/mapper.h set_keep_trail): call before the first
+  // step(). Stages without a map ignore it.
+  virtual void set_keep_trail(bool /*on*/) {}
+  // After the last step(): the final pose (T_cam_world) of keyframe `id` of map epoch
+  // `epoch`, or false (another epoch, unknown keyframe, no map).
+  virtual bool final_keyframe_pose(uint32_t /*epoch*/, int /*id*/, Eigen::Matrix3d* /*R*/,
+                                   Eigen::Vector3d* /*t*/) const {
+    return false;
+  }
 };
 
 }  // namespace rdslam

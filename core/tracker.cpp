@@ -468,6 +468,10 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   }
   ref_kf_shared_ = kf_votes_[ref];
   ref_kf_points_ = s.kf_points[ref];
+  if (ref_kf_shared_ > 0) {
+    ref_kf_id_ = s.kf_ids[ref];
+    T_cam_ref_ = cur_.T * s.kf_pose[ref].inverse();
+  }
   const bool few_common = ref_kf_shared_ < params_.m1 ||
                           stats_.inliers < params_.keyframe_overlap_ratio * ref_kf_points_;
   if (!few_common && frames_since_kf_ < params_.max_keyframe_interval) return;
@@ -561,16 +565,26 @@ void Tracker::fill_result(TrackResult& r, bool found) const {
   r.keyframes = link_->keyframes.load(std::memory_order_relaxed);
   r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);
   r.mapper_wait_ms = wait_ms_;
+  r.epoch = epoch_;
+  r.ref_keyframe = found ? ref_kf_id_ : -1;
+  const Pose T_ref_cam = T_cam_ref_.inverse();
+  r.q_ref_cam = Eigen::Quaterniond(T_ref_cam.R).normalized();
+  r.p_ref_cam = T_ref_cam.t;
 }
 
 TrackResult Tracker::track(const Frame& frame) {
   ++frame_no_;
   ++track_no_;
   wait_ms_ = 0.0;
+  ref_kf_id_ = -1;
   extract(frame);
   bool found = false;
   if (state_ == TrackingState::kInitializing) {
     found = track_initializing(frame);  // start_from_init hands this frame to the mapper itself
+    if (found) {
+      ref_kf_id_ = 1;  // this frame is the new map's second keyframe
+      T_cam_ref_ = Pose{};
+    }
   } else {
     found = state_ == TrackingState::kLost ? handle_lost() : track_with_map();
     if (found) {

@@ -234,6 +234,8 @@ class Tracker {
   std::vector<float> level_scale_;
   TrackerStats stats_;
   int ref_kf_shared_ = 0, ref_kf_points_ = 0;
+  int ref_kf_id_ = -1;    // this frame's reference keyframe (TrackResult::ref_keyframe)
+  Pose T_cam_ref_;        // this frame's pose relative to it
   double wait_ms_ = 0.0;  // this frame's time in wait_for_mapper() (reported, not tracking)
   // Debug output only (set_debug_sink): per feature of this frame, the DebugFeatureKind of
   // an estimator rejection (sized only when a sink is set).

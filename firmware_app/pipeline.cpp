@@ -626,4 +626,30 @@ ReplayReport replay_source(FrameSource& source, TrackerStage& tracker, MapperSta
   return report;
 }
 
+Trajectory final_trajectory(const ReplayReport& rr, const MapperStage& mapper) {
+  Trajectory out;
+  for (const auto& f : rr.frames) {
+    if (f.result.state != TrackingState::kTracking &&
+        f.result.state != TrackingState::kRelocalized) {
+      continue;
+    }
+    StampedPose sp;
+    sp.stamp_ns = f.stamp_ns;
+    sp.p_world_cam = f.result.p_world_cam;
+    sp.q_world_cam = f.result.q_world_cam;
+    Eigen::Matrix3d R_kf;  // keyframe: T_cam_world
+    Eigen::Vector3d t_kf;
+    if (f.result.ref_keyframe >= 0 &&
+        mapper.final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &R_kf, &t_kf)) {
+      const Eigen::Matrix3d R_world_ref = R_kf.transpose();
+      const Eigen::Vector3d p_world_ref = -R_world_ref * t_kf;
+      sp.q_world_cam = Eigen::Quaterniond(R_world_ref * f.result.q_ref_cam.toRotationMatrix());
+      sp.q_world_cam.normalize();
+      sp.p_world_cam = R_world_ref * f.result.p_ref_cam + p_world_ref;
+    }
+    out.push_back(sp);
+  }
+  return out;
+}
+
 }  // namespace rdslam

@@ -43,6 +43,7 @@
 #include "core/latency_histogram.h"
 #include "core/spsc_ring.h"
 #include "core/stages.h"
+#include "core/trajectory.h"
 #include "firmware_app/pipeline_params.h"
 
 namespace rdslam {
@@ -276,6 +277,13 @@ ReplayReport replay_source(FrameSource& source, TrackerStage& tracker, MapperSta
                            const PipelineOptions& options,
                            const std::vector<PipelineSink*>& sinks = {},
                            const std::atomic<bool>* cancel = nullptr);
+
+// The final trajectory (ORB-SLAM's per-frame trajectory): each tracked frame's pose relative
+// to its reference keyframe when it was tracked (TrackResult::ref_keyframe), composed with
+// that keyframe's pose in the final map, after every later bundle adjustment. Frames whose
+// reference keyframe is not in the final map (another map epoch, none) keep their online pose.
+// `mapper` must have had set_keep_trail(true) before the run and must have stopped.
+Trajectory final_trajectory(const ReplayReport& rr, const MapperStage& mapper);
 
 // CLOCK_MONOTONIC in nanoseconds (the clock of Frame::arrival_mono_ns).
 int64_t mono_now_ns();

@@ -52,7 +52,7 @@ export -f run_one
 export rdslam out
 (( table_only )) || printf '%s\n' "${sources[@]}" | xargs -P "$jobs" -I{} bash -c 'run_one "$@"' _ {} "$@"
 status=0
-printf '%-26s %8s %5s %8s %5s %7s %s\n' scene tracked init "ATE %" kfs points "${ref:+vs $ref}"
+printf '%-26s %8s %5s %8s %8s %5s %7s %s\n' scene tracked init "ATE %" "final %" kfs points "${ref:+vs $ref}"
 for s in "${sources[@]}"; do
   name=${s%%=*}
   line=$(python3 - "$out/$name.json" <<'PY'
@@ -61,8 +61,9 @@ r = json.load(open(sys.argv[1]))
 def f(k, fmt):
     v = r.get(k)
     return "-" if v is None else fmt.format(v)
+fin = (r.get("ate_final") or {}).get("rmse_pct_path")
 print(f("tracked_frames", "{}"), f("initialized_frame", "{}"), f("ate_rmse_pct_path", "{:.3f}"),
-      f("keyframes", "{}"), f("map_points", "{}"))
+      "-" if fin is None else "{:.3f}".format(fin), f("keyframes", "{}"), f("map_points", "{}"))
 PY
 )
   verdict=""
@@ -70,6 +71,6 @@ PY
     if cmp -s "$out/$name.tum" "$ref/$name.tum"; then verdict=identical; else verdict=DIFFERS; status=1; fi
   fi
   # shellcheck disable=SC2086
-  printf '%-26s %8s %5s %8s %5s %7s %s\n' "$name" ${line:-- - - - -} "$verdict"
+  printf '%-26s %8s %5s %8s %8s %5s %7s %s\n' "$name" ${line:-- - - - - -} "$verdict"
 done
 exit $status
