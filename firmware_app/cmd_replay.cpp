@@ -23,14 +23,6 @@
 
 namespace rdslam {
 
-namespace {
-
-bool tracked(TrackingState s) {
-  return s == TrackingState::kTracking || s == TrackingState::kRelocalized;
-}
-
-}  // namespace
-
 int cmd_replay(int argc, char** argv) {
   std::string uri, config_path, traj_path, report_path, plot_path, timings_path;
   std::string final_traj_path;
@@ -148,18 +140,12 @@ int cmd_replay(int argc, char** argv) {
   RunReport report;
   std::vector<TrackingState> states;
   std::vector<double> latency_ms;
-  Trajectory est;
   for (const auto& f : rr.frames) {
     states.push_back(f.result.state);
     latency_ms.push_back(f.latency_ns() * 1e-6);
-    if (!tracked(f.result.state)) continue;
-    StampedPose sp;
-    sp.stamp_ns = f.stamp_ns;
-    sp.p_world_cam = f.result.p_world_cam;
-    sp.q_world_cam = f.result.q_world_cam;
-    est.push_back(sp);
   }
-  const Trajectory final_est = final_trajectory(rr, *stages.mapper);
+  const Trajectory est = replay_trajectory(rr);
+  const Trajectory final_est = replay_trajectory(rr, stages.mapper.get());
   compute_tracking_stats(states, report);
   compute_latency_stats(latency_ms, report);
   report.fps = rr.wall_s > 0 ? rr.frames.size() / rr.wall_s : 0.0;

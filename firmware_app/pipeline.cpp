@@ -626,7 +626,7 @@ ReplayReport replay_source(FrameSource& source, TrackerStage& tracker, MapperSta
   return report;
 }
 
-Trajectory final_trajectory(const ReplayReport& rr, const MapperStage& mapper) {
+Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_map) {
   Trajectory out;
   for (const auto& f : rr.frames) {
     if (f.result.state != TrackingState::kTracking &&
@@ -639,8 +639,8 @@ Trajectory final_trajectory(const ReplayReport& rr, const MapperStage& mapper) {
     sp.q_world_cam = f.result.q_world_cam;
     Eigen::Matrix3d R_kf;  // keyframe: T_cam_world
     Eigen::Vector3d t_kf;
-    if (f.result.ref_keyframe >= 0 &&
-        mapper.final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &R_kf, &t_kf)) {
+    if (final_map != nullptr && f.result.ref_keyframe >= 0 &&
+        final_map->final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &R_kf, &t_kf)) {
       const Eigen::Matrix3d R_world_ref = R_kf.transpose();
       const Eigen::Vector3d p_world_ref = -R_world_ref * t_kf;
       sp.q_world_cam = Eigen::Quaterniond(R_world_ref * f.result.q_ref_cam.toRotationMatrix());

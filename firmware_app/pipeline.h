@@ -278,12 +278,14 @@ ReplayReport replay_source(FrameSource& source, TrackerStage& tracker, MapperSta
                            const std::vector<PipelineSink*>& sinks = {},
                            const std::atomic<bool>* cancel = nullptr);
 
-// The final trajectory (ORB-SLAM's per-frame trajectory): each tracked frame's pose relative
-// to its reference keyframe when it was tracked (TrackResult::ref_keyframe), composed with
-// that keyframe's pose in the final map, after every later bundle adjustment. Frames whose
-// reference keyframe is not in the final map (another map epoch, none) keep their online pose.
-// `mapper` must have had set_keep_trail(true) before the run and must have stopped.
-Trajectory final_trajectory(const ReplayReport& rr, const MapperStage& mapper);
+// The poses of the tracked frames (TRACKING, RELOCALIZED). With `final_map` null, the online
+// trajectory: each pose as published. Otherwise the final trajectory (ORB-SLAM's per-frame
+// trajectory): each tracked frame's pose relative to its reference keyframe when it was
+// tracked (TrackResult::ref_keyframe), composed with that keyframe's pose in the final map,
+// after every later bundle adjustment; frames whose reference keyframe is not in the final map
+// (another map epoch, none) keep their online pose. `final_map` must have had
+// set_keep_trail(true) before the run and must have stopped.
+Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_map = nullptr);
 
 // CLOCK_MONOTONIC in nanoseconds (the clock of Frame::arrival_mono_ns).
 int64_t mono_now_ns();

@@ -50,9 +50,9 @@ TEST(SlamThreaded, KittiThroughPipelineThreads) {
   EXPECT_LE(r.ate_m.rmse, 0.001 * r.gt_path_length_m);
 }
 
-// The final trajectory (final_trajectory(): frames re-anchored on their reference keyframes'
-// final poses) has a pose for every tracked frame, is no worse than the online trajectory
-// and differs from it (the keyframes moved after the frames were tracked).
+// The final trajectory (replay_trajectory() with the final map: frames re-anchored on their
+// reference keyframes' final poses) has a pose for every tracked frame, is no worse than the online
+// trajectory and differs from it (the keyframes moved after the frames were tracked).
 TEST(SlamThreaded, FinalTrajectoryReanchorsOnRefinedKeyframes) {
   SourceOptions so;
   so.speed = 0.0;  // as fast as the pipeline takes frames
@@ -65,16 +65,8 @@ TEST(SlamThreaded, FinalTrajectoryReanchorsOnRefinedKeyframes) {
   PipelineOptions opt;
   opt.lossless = true;
   const ReplayReport rr = replay_source(*src, *stages.tracker, *stages.mapper, opt);
-  Trajectory online;
-  for (const auto& f : rr.frames) {
-    if (!test::is_tracked(f.result.state)) continue;
-    StampedPose p;
-    p.stamp_ns = f.stamp_ns;
-    p.p_world_cam = f.result.p_world_cam;
-    p.q_world_cam = f.result.q_world_cam;
-    online.push_back(p);
-  }
-  const Trajectory final_est = final_trajectory(rr, *stages.mapper);
+  const Trajectory online = replay_trajectory(rr);
+  const Trajectory final_est = replay_trajectory(rr, stages.mapper.get());
   ASSERT_GE(online.size(), 120u);
   ASSERT_EQ(final_est.size(), online.size());
   double moved = 0.0;
