@@ -48,6 +48,9 @@ void InitializerParams::visit(ParamVisitor& v) {
   v.field("min_points", min_points, 10, 10000, "triangulated points needed");
   v.field("max_reference_age", max_reference_age, 2, 100000,
           "frames before the reference is renewed");
+  v.field("ransac_max_iterations", ransac_max_iterations, 10, 100000,
+          "RANSAC iterations at most for the essential matrix and the homography (bounds the "
+          "cost of an attempt)");
 }
 
 Initializer::Initializer(const InitializerParams& params, const FeatureParams& features,
@@ -197,8 +200,10 @@ InitStatus Initializer::add_frame(const Features& cur, int64_t stamp_ns, InitRes
   const cv::Matx33d Kcv(K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1);
   cv::theRNG().state = 12345;  // deterministic RANSAC
   cv::Mat maskE, maskH;
-  cv::Mat E = cv::findEssentialMat(x0, x1, Kcv, cv::RANSAC, 0.999, 1.0, maskE);
-  cv::Mat H = cv::findHomography(x0, x1, cv::RANSAC, 2.0, maskH, 2000, 0.999);
+  cv::Mat E = cv::findEssentialMat(x0, x1, Kcv, cv::RANSAC, 0.999, 1.0,
+                                   params_.ransac_max_iterations, maskE);
+  cv::Mat H =
+      cv::findHomography(x0, x1, cv::RANSAC, 2.0, maskH, params_.ransac_max_iterations, 0.999);
   if (E.empty() || E.rows != 3 || E.cols != 3 || H.empty()) return InitStatus::kModelFailed;
   Eigen::Matrix3d Ee, He;
   cv::cv2eigen(E, Ee);

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "core/slam.h"
 #include "core/trajectory_eval.h"
+#include "drivers/decimated_source.h"
 #include "drivers/loop_source.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
@@ -31,7 +32,7 @@ int cmd_replay(int argc, char** argv) {
   ArgParser p(
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
       "[--plot OUT.png] [--timings OUT.csv] [--realtime] [--debug-video OUT.mp4] "
-      "[--debug-images DIR] [--debug-every N] [--loop N] [--map-log OUT.csv]",
+      "[--debug-images DIR] [--debug-every N] [--loop N] [--every N] [--map-log OUT.csv]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -44,14 +45,18 @@ int cmd_replay(int argc, char** argv) {
   p.option("--report", &report_path, "OUT.json", "write the JSON report");
   p.option("--plot", &plot_path, "OUT.png", "write a top-view plot against ground truth");
   p.option("--timings", &timings_path, "OUT.csv",
-           "write per-frame timings (seq, index, state, queue+track ms, latency ms)");
+           "write per-frame timings (seq, index, state, queue+track ms, latency ms, track ms)");
   p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
   double loops = 1;
+  double every = 1;
   std::string map_log_path;
   p.option("--loop", &loops, "N",
            "play the source N times in a row (endurance run; the sequence is cached in memory "
            "at start, at most 2 GiB; at each restart the camera jumps back and must "
            "relocalize)");
+  p.option("--every", &every, "N",
+           "keep every N-th frame of a recorded source (frames 0, N, 2N, ...), stamps and "
+           "ground truth unchanged: a fast-forward sequence, e.g. KITTI at 10/N Hz");
   p.option("--map-log", &map_log_path, "OUT.csv",
            "write the map size per frame (seq, state, keyframes, map points, points "
            "invalidated so far)");
@@ -98,6 +103,9 @@ int cmd_replay(int argc, char** argv) {
   if (loops < 1 || loops != std::floor(loops) || loops > 1e6) {
     throw UsageError("--loop: must be an integer >= 1");
   }
+  if (every < 1 || every != std::floor(every) || every > 1e6) {
+    throw UsageError("--every: must be an integer >= 1");
+  }
   // Opened before the run, so a bad path fails at once rather than after a long replay.
   std::unique_ptr<FILE, int (*)(FILE*)> map_log(nullptr, &std::fclose);
   if (!map_log_path.empty()) {
@@ -109,9 +117,11 @@ int cmd_replay(int argc, char** argv) {
   if (loops > 1) {
     SourceOptions unpaced = so;
     unpaced.speed = 0.0;  // the cache is filled as fast as the source reads
-    source = make_looped_source(open_source(uri, unpaced), static_cast<int>(loops), so.speed);
+    source = make_looped_source(
+        make_decimated_source(open_source(uri, unpaced), static_cast<int>(every)),
+        static_cast<int>(loops), so.speed);
   } else {
-    source = open_source(uri, so);
+    source = make_decimated_source(open_source(uri, so), static_cast<int>(every));
   }
   const CameraModel camera =
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
@@ -139,15 +149,17 @@ int cmd_replay(int argc, char** argv) {
 
   RunReport report;
   std::vector<TrackingState> states;
-  std::vector<double> latency_ms;
+  std::vector<double> latency_ms, track_ms;
   for (const auto& f : rr.frames) {
     states.push_back(f.result.state);
     latency_ms.push_back(f.latency_ns() * 1e-6);
+    track_ms.push_back(f.track_ns * 1e-6);
   }
   const Trajectory est = replay_trajectory(rr);
   const Trajectory final_est = replay_trajectory(rr, stages.mapper.get());
   compute_tracking_stats(states, report);
   compute_latency_stats(latency_ms, report);
+  const StateTiming init_ms = tracker_ms_in_state(states, track_ms, TrackingState::kInitializing);
   report.fps = rr.wall_s > 0 ? rr.frames.size() / rr.wall_s : 0.0;
   report.peak_rss_mb = peak_rss_mb();
   const std::optional<Trajectory> gt = source->ground_truth();
@@ -169,6 +181,10 @@ int cmd_replay(int argc, char** argv) {
   std::printf("  %-26s %.1f\n", "fps", report.fps);
   std::printf("  %-26s p50 %.2f  p99 %.2f\n", "tracker ms", rr.stages.tracker.percentile_ms(0.5),
               rr.stages.tracker.percentile_ms(0.99));
+  if (init_ms.frames > 0) {
+    std::printf("  %-26s p50 %.2f  p99 %.2f (%lld frames)\n", "tracker ms initializing",
+                *init_ms.p50_ms, *init_ms.p99_ms, static_cast<long long>(init_ms.frames));
+  }
   std::printf("  %-26s p50 %.2f  p99 %.2f\n", "latency ms", report.latency_p50_ms,
               report.latency_p99_ms);
   const PipelineStatus& st = rr.status;
@@ -208,11 +224,12 @@ int cmd_replay(int argc, char** argv) {
     // Capture-to-publish latency of every published frame, split at track() return.
     FILE* f = std::fopen(timings_path.c_str(), "w");
     if (!f) throw std::runtime_error("cannot write " + timings_path);
-    std::fprintf(f, "seq,dataset_index,state,arrival_to_tracked_ms,latency_ms\n");
+    std::fprintf(f, "seq,dataset_index,state,arrival_to_tracked_ms,latency_ms,track_ms\n");
     for (const auto& fr : rr.frames) {
-      std::fprintf(f, "%llu,%lld,%s,%.3f,%.3f\n", static_cast<unsigned long long>(fr.seq),
+      std::fprintf(f, "%llu,%lld,%s,%.3f,%.3f,%.3f\n", static_cast<unsigned long long>(fr.seq),
                    static_cast<long long>(fr.dataset_index), to_string(fr.result.state),
-                   (fr.tracked_mono_ns - fr.arrival_mono_ns) * 1e-6, fr.latency_ns() * 1e-6);
+                   (fr.tracked_mono_ns - fr.arrival_mono_ns) * 1e-6, fr.latency_ns() * 1e-6,
+                   fr.track_ns * 1e-6);
     }
     std::fclose(f);
   }
@@ -244,6 +261,12 @@ int cmd_replay(int argc, char** argv) {
     w.begin_object("tracker_ms");
     w.value("p50", rr.stages.tracker.percentile_ms(0.5));
     w.value("p99", rr.stages.tracker.percentile_ms(0.99));
+    w.end_object();
+    // Frames processed while INITIALIZING (before the map exists); null when there were none.
+    w.begin_object("init_tracker_ms");
+    w.value("p50", init_ms.p50_ms);
+    w.value("p99", init_ms.p99_ms);
+    w.value("frames", init_ms.frames);
     w.end_object();
     w.begin_object("dropped");  // captured + source_skipped == processed + total
     w.value("total", static_cast<int64_t>(st.frames_dropped));

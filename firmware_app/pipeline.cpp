@@ -387,6 +387,7 @@ void Pipeline::process_frame(uint32_t slot) {
     m->frame.dataset_index = f.dataset_index;
     m->frame.arrival_mono_ns = f.arrival_mono_ns;
     m->frame.tracked_mono_ns = t1;
+    m->frame.track_ns = t1 - t0;
     m->frame.publish_mono_ns = 0;
     m->frame.result = r;
     output_.commit();

@@ -55,6 +55,7 @@ struct FrameResult {
   int64_t dataset_index = -1;   // Frame::dataset_index
   int64_t arrival_mono_ns = 0;  // CLOCK_MONOTONIC when the frame entered rdslam
   int64_t tracked_mono_ns = 0;  // CLOCK_MONOTONIC when track() returned
+  int64_t track_ns = 0;         // duration of TrackerStage::track() for this frame
   int64_t publish_mono_ns = 0;  // CLOCK_MONOTONIC when the publisher took it
   int64_t latency_ns() const { return publish_mono_ns - arrival_mono_ns; }
   TrackResult result;

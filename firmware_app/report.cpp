@@ -229,6 +229,21 @@ void compute_latency_stats(const std::vector<double>& latencies_ms, RunReport& r
   report.latency_p99_ms = percentile(latencies_ms, 0.99);
 }
 
+StateTiming tracker_ms_in_state(const std::vector<TrackingState>& states,
+                                const std::vector<double>& track_ms, TrackingState state) {
+  std::vector<double> v;
+  for (size_t i = 0; i < states.size() && i < track_ms.size(); ++i) {
+    if (states[i] == state) v.push_back(track_ms[i]);
+  }
+  StateTiming t;
+  t.frames = static_cast<int64_t>(v.size());
+  if (!v.empty()) {
+    t.p50_ms = percentile(v, 0.5);
+    t.p99_ms = percentile(v, 0.99);
+  }
+  return t;
+}
+
 std::string compute_ate(const Trajectory& ground_truth, const Trajectory& estimate,
                         RunReport& report) {
   report.ate_rmse_m.reset();

@@ -83,6 +83,17 @@ void compute_tracking_stats(const std::vector<TrackingState>& states, RunReport&
 // Fills latency_p50_ms / latency_p99_ms from per-frame latencies.
 void compute_latency_stats(const std::vector<double>& latencies_ms, RunReport& report);
 
+// Tracker time per frame over the frames whose result was in one state (the replay report's
+// `init_tracker_ms`: the frames processed while INITIALIZING, before the map exists).
+struct StateTiming {
+  int64_t frames = 0;            // frames in the state
+  std::optional<double> p50_ms;  // empty when no frame was in the state
+  std::optional<double> p99_ms;
+};
+// `states` and `track_ms` are per frame, in frame order, of equal length.
+StateTiming tracker_ms_in_state(const std::vector<TrackingState>& states,
+                                const std::vector<double>& track_ms, TrackingState state);
+
 // Fills ate_rmse_m / ate_rmse_pct_path: `estimate` holds the poses of the tracked frames,
 // aligned to `ground_truth` with Sim3 (monocular: no metric scale) after association by
 // stamp (10 ms). Leaves them empty and returns the reason when evaluation is impossible

@@ -53,6 +53,20 @@ TEST(Report, PercentilesInterpolateLikeNumpy) {
   EXPECT_DOUBLE_EQ(r.latency_p99_ms, 99.01);
 }
 
+TEST(Report, TrackerTimeWhileInitializing) {
+  // init_tracker_ms of the replay report: the frames whose result was INITIALIZING only.
+  const rdslam::StateTiming t =
+      rdslam::tracker_ms_in_state({I, I, I, T, L, I, T}, {10, 30, 20, 1, 2, 40, 3}, I);
+  EXPECT_EQ(t.frames, 4);
+  ASSERT_TRUE(t.p50_ms && t.p99_ms);
+  EXPECT_DOUBLE_EQ(*t.p50_ms, 25.0);                // of {10, 20, 30, 40}
+  EXPECT_DOUBLE_EQ(*t.p99_ms, 10 + 0.99 * 3 * 10);  // 39.7
+  const rdslam::StateTiming none = rdslam::tracker_ms_in_state({T, T}, {1, 2}, I);
+  EXPECT_EQ(none.frames, 0);
+  EXPECT_FALSE(none.p50_ms.has_value());
+  EXPECT_FALSE(none.p99_ms.has_value());
+}
+
 TEST(Report, JsonHasTheCommonKeysInOrder) {
   RunReport r;
   r.frames = 10;
