@@ -369,6 +369,44 @@ TEST(Synth, DrivingAdvancesOneToTwoMetresPerFrameAtTenHz) {
   EXPECT_GT(median(border), 5 * median(centre));
 }
 
+// render.full_mip_chain: a texture repeated so often that many repeats fall into one pixel
+// (a long corridor's far end) is drawn in its mean colour; with the chain stopping at ~4
+// texels it aliases into a black-and-white pattern instead.
+TEST(Synth, FullMipChainFadesFarRepeatsToTheirMean) {
+  const fs::path dir = temp_dir("mip");
+  fs::create_directories(dir);
+  cv::Mat halves(64, 64, CV_8UC3, cv::Scalar(0, 0, 0));
+  halves(cv::Rect(32, 0, 32, 64)).setTo(cv::Scalar(255, 255, 255));
+  cv::imwrite((dir / "halves.png").string(), halves);
+  auto corridor = [&](const char* full) {
+    return load_synth_scene_yaml(
+        "frames: 1\ntexture_dir: " + dir.string() +
+            "\nrender: {noise_sigma: 0, ambient: 1.0, diffuse: 0.0, full_mip_chain: " + full +
+            "}\nroom: {size: [4, 600, 3], panel: 1.0, wall_textures: [halves], floor_texture: "
+            "halves, floor_tile_m: 1.0, ceiling_texture: halves, ceiling_tile_m: 1.0}\n"
+            "trajectory: {type: static, center: [0, -295, 1.5], target: [0, 0, 1.5]}\n",
+        std::string("mip_") + full);
+  };
+  double stddev[2];
+  for (int k = 0; k < 2; ++k) {
+    SynthSequence seq(corridor(k == 0 ? "true" : "false"));
+    SynthFrame f;
+    ASSERT_TRUE(seq.render(0, f));
+    const cv::Mat far = f.depth > 60.0f;
+    ASSERT_GT(cv::countNonZero(far), 300);
+    cv::Mat gray;
+    cv::cvtColor(f.image, gray, cv::COLOR_BGR2GRAY);
+    cv::Scalar mean, sd;
+    cv::meanStdDev(gray, mean, sd, far);
+    stddev[k] = sd[0];
+  }
+  std::printf("[synth] corridor beyond 60 m: grey std %.1f with the full mip chain, %.1f without\n",
+              stddev[0], stddev[1]);
+  EXPECT_LT(stddev[0], 25.0);
+  EXPECT_GT(stddev[1], 3 * stddev[0]);
+  fs::remove_all(dir);
+}
+
 // issue 22: one rigid, well-textured panel dominates the view; still for the first second,
 // then moving as the seed chooses (docs/synthetic.md): 1-2 sideways, 3-4 towards the camera,
 // 5-6 rotating in the image plane about its centre; odd seeds slow, even seeds fast.
