@@ -116,6 +116,18 @@ SynthRenderer::SynthRenderer(const SynthScene& scene) : scene_(scene) {
       cv::pyrDown(t.mats.back(), down);
       t.mats.push_back(down);
     }
+    // render.full_mip_chain: down to one texel (the photo's mean), so that a surface far away
+    // (a street's end, a long wall at a grazing angle) fades to its mean colour instead of
+    // sampling the last level sparsely and aliasing. Area averaging: pyrDown's 5-tap kernel
+    // wants larger images. Off by default: the room scenarios have a few grazing pixels per
+    // frame beyond the last level above, and they must keep rendering byte for byte.
+    while (scene.render.full_mip_chain && (t.mats.back().cols > 1 || t.mats.back().rows > 1)) {
+      cv::Mat down;
+      cv::resize(t.mats.back(), down,
+                 cv::Size(std::max(1, t.mats.back().cols / 2), std::max(1, t.mats.back().rows / 2)),
+                 0, 0, cv::INTER_AREA);
+      t.mats.push_back(down);
+    }
     for (const cv::Mat& m : t.mats) {
       CV_Assert(m.isContinuous() || m.step[0] >= static_cast<size_t>(m.cols * 3));
       t.levels.push_back({m.data, m.cols, m.rows, m.step[0]});

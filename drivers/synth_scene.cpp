@@ -51,6 +51,14 @@ struct Reader {
   int integer(const YAML::Node& n, const char* key, int def, int lo, int hi) const {
     return static_cast<int>(std::lround(num(n, key, def, lo, hi)));
   }
+  bool boolean(const YAML::Node& n, const char* key, bool def) const {
+    if (!n || !n[key]) return def;
+    try {
+      return n[key].as<bool>();
+    } catch (const YAML::Exception&) {
+      fail(origin, std::string(key) + ": expected true or false");
+    }
+  }
   std::string str(const YAML::Node& n, const char* key, const std::string& def) const {
     if (!n || !n[key]) return def;
     try {
@@ -234,12 +242,37 @@ double camera_time(const SynthScene& sc, double frame) {
   return (frame - paused) / sc.fps;
 }
 
+// Roll/pitch/yaw swings in the camera frame (rpy and forward trajectories): roll about the
+// optical axis (z), pitch about x, yaw about y, with fixed incommensurate periods.
+Eigen::Matrix3d camera_swing(const Eigen::Vector3d& amp_deg, double t) {
+  const Eigen::Vector3d& a = amp_deg;
+  return (Eigen::AngleAxisd(deg2rad(a.y()) * std::sin(2 * kPi * t / 5.3),
+                            Eigen::Vector3d::UnitX()) *
+          Eigen::AngleAxisd(deg2rad(a.z()) * std::sin(2 * kPi * t / 7.1),
+                            Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(deg2rad(a.x()) * std::sin(2 * kPi * t / 4.3), Eigen::Vector3d::UnitZ()))
+      .toRotationMatrix();
+}
+
 Eigen::Isometry3d eval_camera(const SynthScene& sc, const Shake& shake, double frame) {
   const SynthTrajectorySpec& tr = sc.trajectory;
   const double t = camera_time(sc, frame);
   Eigen::Vector3d p = tr.center;
   Eigen::Matrix3d R;
-  if (tr.type == "xyz") {
+  if (tr.type == "forward") {
+    // Driving: along the direction of travel at speed_m_s, plus sinusoidal offsets in the
+    // path frame (right, forward, up); the camera looks along the direction of travel, with
+    // roll/pitch/yaw swings on top.
+    const Eigen::Vector3d fwd = (tr.target - tr.center).normalized();
+    Eigen::Vector3d right = fwd.cross(Eigen::Vector3d::UnitZ());
+    if (right.norm() < 1e-6) right = Eigen::Vector3d::UnitX();
+    right.normalize();
+    const Eigen::Vector3d up = right.cross(fwd);
+    Eigen::Vector3d off;
+    for (int i = 0; i < 3; ++i) off[i] = tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
+    p += (tr.speed_m_s * t + off.y()) * fwd + off.x() * right + off.z() * up;
+    R = look_at(p, p + fwd) * camera_swing(tr.rpy_amp_deg, t);
+  } else if (tr.type == "xyz") {
     for (int i = 0; i < 3; ++i) p[i] += tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
     R = look_at(p, tr.target);
   } else if (tr.type == "halfsphere") {
@@ -251,14 +284,7 @@ Eigen::Isometry3d eval_camera(const SynthScene& sc, const Shake& shake, double f
     R = look_at(p, tr.target);
   } else if (tr.type == "rpy") {
     for (int i = 0; i < 3; ++i) p[i] += 0.03 * std::sin(2 * kPi * t / tr.period_s[i]);
-    const Eigen::Vector3d a = tr.rpy_amp_deg;
-    // roll about the optical axis (z), pitch about x, yaw about y, in the camera frame.
-    const Eigen::Matrix3d Rj =
-        (Eigen::AngleAxisd(deg2rad(a.y()) * std::sin(2 * kPi * t / 5.3), Eigen::Vector3d::UnitX()) *
-         Eigen::AngleAxisd(deg2rad(a.z()) * std::sin(2 * kPi * t / 7.1), Eigen::Vector3d::UnitY()) *
-         Eigen::AngleAxisd(deg2rad(a.x()) * std::sin(2 * kPi * t / 4.3), Eigen::Vector3d::UnitZ()))
-            .toRotationMatrix();
-    R = look_at(p, tr.target) * Rj;
+    R = look_at(p, tr.target) * camera_swing(tr.rpy_amp_deg, t);
   } else {  // static
     R = look_at(p, tr.target);
   }
@@ -416,7 +442,7 @@ void parse_object(Reader& rd, const YAML::Node& on, SynthScene& sc, TextureTable
                   std::mt19937_64& rng) {
   rd.known(on, "objects[]",
            {"name", "shape", "size", "texture", "faces", "contrast", "blur_px", "albedo", "xyz",
-            "rpy_deg", "visible", "moves", "wobble"});
+            "rpy_deg", "pivot", "visible", "moves", "wobble", "variants"});
   SynthObject o;
   o.id = static_cast<int>(sc.objects.size()) + 1;
   o.name = rd.str(on, "name", "object" + std::to_string(o.id));
@@ -468,17 +494,37 @@ void parse_object(Reader& rd, const YAML::Node& on, SynthScene& sc, TextureTable
          o.name + ".shape: '" + shape + "' unknown; allowed box, plane, person, seated_person");
   }
   (void)rng;
+  // The pivot becomes the object frame's origin: xyz places it, rotations turn about it.
+  const Eigen::Vector3d pivot = rd.vec3(on, "pivot", {0, 0, 0});
+  if (!pivot.isZero(0))
+    for (auto& q : o.quads) q.p0 -= pivot;
   const Eigen::Vector3d xyz = rd.vec3(on, "xyz", {0, 0, 0});
   Eigen::Vector3d rpy = rd.vec3(on, "rpy_deg", {0, 0, 0});
   o.pose0 = make_pose(xyz, rpy);
   const auto vis = rd.range(on, "visible", {0, INT_MAX});
   o.visible_from = vis.first;
   o.visible_until = vis.second;
-  if (on["moves"]) {
-    if (!on["moves"].IsSequence()) fail(rd.origin, o.name + ".moves: expected a list");
+  // The motion: the object's own moves and wobble, or the variant the seed picks (seed 1 the
+  // first, seed 2 the second, ..., cycling: index (seed - 1) mod N).
+  const YAML::Node motion = [&]() -> YAML::Node {
+    if (!on["variants"]) return on;
+    if (on["moves"] || on["wobble"])
+      fail(rd.origin, o.name + ": give either moves/wobble or variants, not both");
+    const YAML::Node vs = on["variants"];
+    if (!vs.IsSequence() || vs.size() == 0)
+      fail(rd.origin, o.name + ".variants: expected a non-empty list");
+    const uint64_t n = vs.size();
+    const size_t k = static_cast<size_t>((sc.seed % n + n - 1) % n);
+    const YAML::Node v = vs[k];
+    rd.known(v, (o.name + ".variants[]").c_str(), {"label", "moves", "wobble"});
+    o.variant = rd.str(v, "label", "variant " + std::to_string(k + 1));
+    return v;
+  }();
+  if (motion["moves"]) {
+    if (!motion["moves"].IsSequence()) fail(rd.origin, o.name + ".moves: expected a list");
     Eigen::Vector3d cur_xyz = xyz, cur_rpy = rpy;
     int last_end = -1;
-    for (const auto& mn : on["moves"]) {
+    for (const auto& mn : motion["moves"]) {
       rd.known(mn, (o.name + ".moves[]").c_str(), {"start", "end", "xyz", "rpy_deg", "ease"});
       SynthMove m;
       m.start = rd.integer(mn, "start", 0, 0, 10000000);
@@ -496,8 +542,8 @@ void parse_object(Reader& rd, const YAML::Node& on, SynthScene& sc, TextureTable
       o.moves.push_back(m);
     }
   }
-  if (on["wobble"]) {
-    const YAML::Node wn = on["wobble"];
+  if (motion["wobble"]) {
+    const YAML::Node wn = motion["wobble"];
     rd.known(wn, (o.name + ".wobble").c_str(),
              {"amplitude_m", "amplitude_deg", "period_s", "start", "end", "fade_s"});
     SynthWobble& w = o.wobble;
@@ -556,25 +602,37 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
 
   const YAML::Node rn = root["render"];
   rd.known(rn, "render",
-           {"noise_sigma", "motion_blur_samples", "shutter", "near_m", "ambient", "diffuse"});
+           {"noise_sigma", "motion_blur_samples", "shutter", "near_m", "ambient", "diffuse",
+            "full_mip_chain"});
   sc.render.noise_sigma = rd.num(rn, "noise_sigma", 2.0, 0.0, 50.0);
   sc.render.motion_blur_samples = rd.integer(rn, "motion_blur_samples", 0, 0, 32);
   sc.render.shutter = rd.num(rn, "shutter", 0.5, 0.0, 1.0);
   sc.render.near_m = rd.num(rn, "near_m", 0.05, 0.001, 10.0);
   sc.render.ambient = rd.num(rn, "ambient", 0.6, 0.0, 2.0);
   sc.render.diffuse = rd.num(rn, "diffuse", 0.4, 0.0, 2.0);
+  sc.render.full_mip_chain = rd.boolean(rn, "full_mip_chain", false);
 
   const YAML::Node tn = root["trajectory"];
   rd.known(tn, "trajectory",
            {"type", "center", "target", "amplitude_m", "period_s", "radius_m", "azimuth_deg",
             "elevation_deg", "elevation_amp_deg", "azimuth_period_s", "elevation_period_s",
-            "rpy_amp_deg", "shake", "pauses"});
+            "rpy_amp_deg", "speed_m_s", "shake", "pauses"});
   SynthTrajectorySpec& tr = sc.trajectory;
   tr.type = rd.str(tn, "type", "xyz");
-  if (tr.type != "xyz" && tr.type != "halfsphere" && tr.type != "rpy" && tr.type != "static")
-    fail(origin, "trajectory.type: '" + tr.type + "'; allowed xyz, halfsphere, rpy, static");
+  if (tr.type != "xyz" && tr.type != "halfsphere" && tr.type != "rpy" && tr.type != "static" &&
+      tr.type != "forward")
+    fail(origin,
+         "trajectory.type: '" + tr.type + "'; allowed xyz, halfsphere, rpy, static, forward");
+  const bool forward = tr.type == "forward";
+  if (forward) {  // a straight drive unless offsets and swings are asked for
+    tr.amplitude_m.setZero();
+    tr.rpy_amp_deg.setZero();
+  }
   tr.center = rd.vec3(tn, "center", tr.center);
   tr.target = rd.vec3(tn, "target", tr.target);
+  if (forward && (tr.target - tr.center).norm() < 1e-9)
+    fail(origin, "trajectory.target: must differ from center (it sets the direction of travel)");
+  tr.speed_m_s = rd.num(tn, "speed_m_s", tr.speed_m_s, 0.0, 1000.0);
   tr.amplitude_m = rd.vec3(tn, "amplitude_m", tr.amplitude_m);
   tr.period_s = rd.vec3(tn, "period_s", tr.period_s);
   if ((tr.period_s.array() <= 0).any()) fail(origin, "trajectory.period_s: must be positive");
@@ -630,7 +688,7 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
   const YAML::Node room = root["room"];
   rd.known(room, "room",
            {"size", "panel", "wall_textures", "floor_texture", "floor_tile_m", "ceiling_texture",
-            "contrast", "blur_px", "albedo"});
+            "ceiling_tile_m", "contrast", "blur_px", "albedo"});
   {
     SynthObject o;
     o.id = 1;
@@ -670,13 +728,14 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
       q.uv_scale = {q.u.norm() / tile, q.v.norm() / tile};
       q.albedo = albedo;
     }
+    const double ceil_tile = rd.num(room, "ceiling_tile_m", 2.0, 0.1, 1000);
     const size_t first_ceil = o.quads.size();
     add_panels(o.quads, V(-W / 2, -D / 2, H), V(1, 0, 0), V(0, 1, 0), W, D, 1.0, {ceil_t}, rng,
                albedo);
     for (size_t i = first_ceil; i < o.quads.size(); ++i) {
       SynthQuad& q = o.quads[i];
-      q.uv0 = {(q.p0.x() + W / 2) / 2.0, (q.p0.y() + D / 2) / 2.0};
-      q.uv_scale = {q.u.norm() / 2.0, q.v.norm() / 2.0};
+      q.uv0 = {(q.p0.x() + W / 2) / ceil_tile, (q.p0.y() + D / 2) / ceil_tile};
+      q.uv_scale = {q.u.norm() / ceil_tile, q.v.norm() / ceil_tile};
       q.albedo = albedo;
     }
     sc.objects.push_back(std::move(o));

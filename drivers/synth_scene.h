@@ -82,6 +82,8 @@ struct SynthObject {
   Eigen::Isometry3d pose0 = Eigen::Isometry3d::Identity();            // T_world_obj at frame 0
   std::vector<SynthMove, Eigen::aligned_allocator<SynthMove>> moves;
   SynthWobble wobble;
+  // Label of the motion variant the seed chose (key `variants`), empty when there is none.
+  std::string variant;
   int visible_from = 0;  // visible for frames in [visible_from, visible_until)
   int visible_until = INT_MAX;
   // Derived from the motion by the loader (exact, frame by frame):
@@ -120,21 +122,28 @@ struct SynthRenderOptions {
   double near_m = 0.05;         // near clipping plane
   double ambient = 0.6;         // shading: ambient + diffuse * max(0, n . sun)
   double diffuse = 0.4;
+  // Mip levels down to one texel (long scenes: a distant surface fades to its mean colour);
+  // false keeps the original chain, which stops at about 4 texels.
+  bool full_mip_chain = false;
 };
 
 struct SynthTrajectorySpec {
-  std::string type = "xyz";                       // xyz | halfsphere | rpy | static
-  Eigen::Vector3d center{0, -1.3, 1.3};           // xyz/rpy/static: mean camera centre
-  Eigen::Vector3d target{0, 2.5, 1.0};            // the point the camera looks at
-  Eigen::Vector3d amplitude_m{0.35, 0.15, 0.15};  // xyz: translation amplitudes
-  Eigen::Vector3d period_s{6.0, 7.7, 4.9};        // xyz: periods per axis
-  double radius_m = 2.2;                          // halfsphere: distance to target
-  double azimuth_deg = 35.0;                      // halfsphere: +- sweep about the -y direction
-  double elevation_deg = 20.0;                    // halfsphere: mean elevation
+  std::string type = "xyz";              // xyz | halfsphere | rpy | static | forward
+  Eigen::Vector3d center{0, -1.3, 1.3};  // xyz/rpy/static: mean camera centre; forward: start
+  Eigen::Vector3d target{0, 2.5, 1.0};   // the point the camera looks at (forward: sets the
+                                         // direction of travel, target - center)
+  // xyz: translation amplitudes per world axis; forward: offsets along the path's
+  // (right, forward, up) axes (the forward one varies the speed).
+  Eigen::Vector3d amplitude_m{0.35, 0.15, 0.15};
+  Eigen::Vector3d period_s{6.0, 7.7, 4.9};  // xyz, forward: periods of those sinusoids
+  double speed_m_s = 10.0;                  // forward: mean speed along the direction of travel
+  double radius_m = 2.2;                    // halfsphere: distance to target
+  double azimuth_deg = 35.0;                // halfsphere: +- sweep about the -y direction
+  double elevation_deg = 20.0;              // halfsphere: mean elevation
   double elevation_amp_deg = 10.0;
   double azimuth_period_s = 10.0;
   double elevation_period_s = 7.0;
-  Eigen::Vector3d rpy_amp_deg{10, 10, 15};  // rpy: roll pitch yaw amplitudes
+  Eigen::Vector3d rpy_amp_deg{10, 10, 15};  // rpy, forward: roll pitch yaw amplitudes
   double shake = 1.0;                       // hand-held jitter scale (0 = tripod)
   std::vector<std::pair<int, int>> pauses;  // [first, last) frames where the camera stands still
 };

@@ -51,7 +51,9 @@ std::string synth_events_yaml(const SynthScene& scene) {
      << "objects:\n";
   for (const auto& o : scene.objects) {
     os << "  - {id: " << o.id << ", name: " << o.name
-       << ", dynamic_from: " << (o.first_change == INT_MAX ? -1 : o.first_change) << "}\n";
+       << ", dynamic_from: " << (o.first_change == INT_MAX ? -1 : o.first_change);
+    if (!o.variant.empty()) os << ", variant: " << o.variant;
+    os << "}\n";
   }
   os << "events:\n";
   if (scene.events.empty()) os << "  []\n";

@@ -37,7 +37,9 @@ int cmd_synth(int argc, char** argv) {
   p.positional("SCENARIO", &scenario, "built-in scenario name (see --list) or a YAML file", true);
   p.option("--out", &out_dir, "DIR", "write the sequence as a TUM-format folder");
   p.option("--frames", &frames, "N", "number of frames (default: the scenario's, 300)");
-  p.option("--seed", &seed, "N", "random seed (hand-held shake, noise, poster layout)");
+  p.option("--seed", &seed, "N",
+           "random seed (hand-held shake, noise, poster layout; the motion of a scenario with "
+           "variants, e.g. dominant_object)");
   p.option("--contact-sheet", &sheet_path, "OUT.png",
            "write 8 frames with the dynamic mask overlaid in red");
   p.flag("--bench", &bench, "render every frame in memory and print frames per second");
