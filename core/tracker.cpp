@@ -33,6 +33,10 @@ void TrackerParams::visit(ParamVisitor& v) {
           "or tracked points below this fraction of the reference keyframe's");
   v.field("max_keyframe_interval", max_keyframe_interval, 1, 100000,
           "frames after which a keyframe is proposed anyway");
+  v.field("young_map_keyframes", young_map_keyframes, 0, 100000,
+          "a map with fewer keyframes than this is young (0: never)");
+  v.field("young_map_keyframe_interval", young_map_keyframe_interval, 1, 100000,
+          "max_keyframe_interval while the map is young");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
           "lost this long with <= 2 keyframes: re-initialize");
   v.field("robust_per_frame", robust_per_frame,
@@ -474,7 +478,11 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   }
   const bool few_common = ref_kf_shared_ < params_.m1 ||
                           stats_.inliers < params_.keyframe_overlap_ratio * ref_kf_points_;
-  if (!few_common && frames_since_kf_ < params_.max_keyframe_interval) return;
+  // A young map rests on the two-view initialization's short baseline: its scale and depths
+  // are refined only by the keyframes that follow, so they are proposed sooner.
+  const bool young = link_->keyframes.load(std::memory_order_relaxed) < params_.young_map_keyframes;
+  const int interval = young ? params_.young_map_keyframe_interval : params_.max_keyframe_interval;
+  if (!few_common && frames_since_kf_ < interval) return;
   if (params_.sync_mapper) wait_for_mapper();
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;  // the mapper has not taken the previous candidate yet

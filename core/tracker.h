@@ -42,8 +42,10 @@
 // when it tracks fewer than `keyframe_overlap_ratio` times the reference keyframe's
 // well-observed points (ORB-SLAM's monocular rule, 0.9: ORB features are denser than the
 // paper's SIFT, so the absolute m1 = 80 alone reacts too late), or after
-// `max_keyframe_interval` frames. The mapper then accepts it only if it contributes more than
-// m2 new points (condition 3).
+// `max_keyframe_interval` frames (`young_map_keyframe_interval` while the map has fewer than
+// `young_map_keyframes` keyframes: the young map's scale and depths rest on the two-view
+// initialization's short baseline until later keyframes refine them). The mapper then accepts it
+// only if it contributes more than m2 new points (condition 3).
 //
 // Ownership: Tracker owns all its buffers (sized at construction from the params) and holds
 // the active MapSnapshot. Threads: tracker thread only. No heap allocation per frame after
@@ -79,6 +81,8 @@ struct TrackerParams {
   int m1 = 80;                  // paper Sec. 4: fewer common features -> potential keyframe
   double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
+  int young_map_keyframes = 12;         // below this many keyframes the map is young
+  int young_map_keyframe_interval = 5;  // max_keyframe_interval while the map is young
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
   // Lossless replay only: after proposing a keyframe, wait for the mapper to finish it, so a
   // replay faster than real time maps like an offline run. Off for live cameras: then the
