@@ -120,7 +120,7 @@ def find_marker(img, u, v, radius_px):
         for x in range(x0, x1 + 1):
             i = (y * width + x) * ch
             r, g, b = px[i], px[i + 1], px[i + 2]
-            weight = min(r, b) - g
+            weight = min(r, b) - 2 * g  # pinks and purples of the materials stay below 0
             if weight > 40 and abs(r - b) < 90:
                 # partial coverage at the anti-aliased rim gives a partial weight
                 w = min(weight, 255) / 255.0
@@ -128,7 +128,7 @@ def find_marker(img, u, v, radius_px):
                 sx += w * x
                 sy += w * y
                 count += 1
-    if count == 0 or sw < 0.5 * math.pi * radius_px * radius_px:
+    if count == 0 or sw < 0.7 * math.pi * radius_px * radius_px:  # partly hidden
         return None
     return sx / sw, sy / sw
 
