@@ -676,7 +676,11 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
             ratio(off.invalidated_moved, off.invalidated));
   // What this implementation meets on this scene (measured above; issue 8's bars are higher).
   EXPECT_GE(ratio(on.moved_invalidated, on.moved), 0.45);
-  EXPECT_GE(ratio(on.moved_removed, on.moved), 0.65);
+  // Refined recall 63.0% since the young map proposes keyframes every 5 frames (issue 22,
+  // tracker.young_map_keyframes: 27 keyframes accepted instead of fewer, so more points of the
+  // moved surfaces are re-observed before they can be culled); it was above 65% before. Issue
+  // 22 keeps these figures as diagnostics; the trajectory bars below are the bars.
+  EXPECT_GE(ratio(on.moved_removed, on.moved), 0.60);
   EXPECT_GE(ratio(on.invalidated_moved, on.invalidated), 0.49);
   EXPECT_GE(ratio(on.invalidated_moved + on.invalidated_boundary + on.invalidated_covered,
                   on.invalidated),
