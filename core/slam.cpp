@@ -42,13 +42,8 @@ class MapperStageImpl : public MapperStage {
   }
   bool step(int timeout_ms) override { return mapper_.step(timeout_ms); }
   void set_keep_trail(bool on) override { mapper_.set_keep_trail(on); }
-  bool final_keyframe_pose(uint32_t epoch, int id, Eigen::Matrix3d* R,
-                           Eigen::Vector3d* t) const override {
-    Pose T;
-    if (!mapper_.final_keyframe_pose(epoch, id, &T)) return false;
-    *R = T.R;
-    *t = T.t;
-    return true;
+  bool final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const override {
+    return mapper_.final_keyframe_pose(epoch, id, T_cam_world);
   }
 
  private:

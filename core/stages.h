@@ -11,6 +11,8 @@
 #include <array>
 #include <cstdint>
 
+#include "core/geometry.h"
+
 namespace rdslam {
 
 struct Frame;          // core/frame_source.h
@@ -71,8 +73,7 @@ class MapperStage {
   virtual void set_keep_trail(bool /*on*/) {}
   // After the last step(): the final pose (T_cam_world) of keyframe `id` of map epoch
   // `epoch`, or false (another epoch, unknown keyframe, no map).
-  virtual bool final_keyframe_pose(uint32_t /*epoch*/, int /*id*/, Eigen::Matrix3d* /*R*/,
-                                   Eigen::Vector3d* /*t*/) const {
+  virtual bool final_keyframe_pose(uint32_t /*epoch*/, int /*id*/, Pose* /*T_cam_world*/) const {
     return false;
   }
 };

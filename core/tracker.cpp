@@ -574,7 +574,7 @@ void Tracker::fill_result(TrackResult& r, bool found) const {
   r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);
   r.mapper_wait_ms = wait_ms_;
   r.epoch = epoch_;
-  r.ref_keyframe = found ? ref_kf_id_ : -1;
+  r.ref_keyframe = ref_kf_id_;  // -1 unless this frame's pose was found (reset per frame)
   const Pose T_ref_cam = T_cam_ref_.inverse();
   r.q_ref_cam = Eigen::Quaterniond(T_ref_cam.R).normalized();
   r.p_ref_cam = T_ref_cam.t;

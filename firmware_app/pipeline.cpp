@@ -638,15 +638,13 @@ Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_ma
     sp.stamp_ns = f.stamp_ns;
     sp.p_world_cam = f.result.p_world_cam;
     sp.q_world_cam = f.result.q_world_cam;
-    Eigen::Matrix3d R_kf;  // keyframe: T_cam_world
-    Eigen::Vector3d t_kf;
+    Pose T_ref_world;  // the reference keyframe in the final map
     if (final_map != nullptr && f.result.ref_keyframe >= 0 &&
-        final_map->final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &R_kf, &t_kf)) {
-      const Eigen::Matrix3d R_world_ref = R_kf.transpose();
-      const Eigen::Vector3d p_world_ref = -R_world_ref * t_kf;
-      sp.q_world_cam = Eigen::Quaterniond(R_world_ref * f.result.q_ref_cam.toRotationMatrix());
-      sp.q_world_cam.normalize();
-      sp.p_world_cam = R_world_ref * f.result.p_ref_cam + p_world_ref;
+        final_map->final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &T_ref_world)) {
+      const Pose T_world_cam =
+          T_ref_world.inverse() * Pose{f.result.q_ref_cam.toRotationMatrix(), f.result.p_ref_cam};
+      sp.q_world_cam = Eigen::Quaterniond(T_world_cam.R).normalized();
+      sp.p_world_cam = T_world_cam.t;
     }
     out.push_back(sp);
   }
