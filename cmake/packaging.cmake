@@ -10,6 +10,7 @@
 #   /etc/rdslam/rdslam.yaml                     default configuration (a dpkg conffile)
 #   /usr/lib/sysusers.d/rdslam.conf             the system user the unit runs as
 #   /usr/share/rdslam/lcmtypes/*.lcm            message definitions for lcm-gen/lcm-spy
+#   /usr/share/rdslam/python/rdslam_msgs.py     version-checked rdslam.pose_t decoding
 #   /usr/share/rdslam/examples/                 optional drop-ins (real-time scheduling)
 #   /usr/share/doc/rdslam/                      README and deployment notes
 include(GNUInstallDirs)
@@ -62,6 +63,8 @@ install(FILES ${CMAKE_SOURCE_DIR}/systemd/rdslam.sysusers DESTINATION ${RDSLAM_S
 install(FILES ${CMAKE_SOURCE_DIR}/systemd/rdslam-realtime.conf
         DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/examples)
 install(FILES ${RDSLAM_LCM_FILES} DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/lcmtypes)
+install(FILES ${CMAKE_SOURCE_DIR}/tools/lcm/rdslam_msgs.py
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/python)
 install(FILES ${CMAKE_SOURCE_DIR}/README.md ${CMAKE_SOURCE_DIR}/docs/deploy.md
         DESTINATION ${CMAKE_INSTALL_DOCDIR})
 

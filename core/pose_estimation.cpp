@@ -3,11 +3,9 @@
 #include <Eigen/Cholesky>
 #include <cmath>
 
-namespace rdslam {
+#include "core/pose_refine.h"
 
-namespace {
-constexpr double kChi2 = 5.991;  // chi-square 2 DoF, 95%
-}
+namespace rdslam {
 
 PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p_world,
                             const Eigen::Vector2d* obs, const float* sigma_px, int n, Pose& T,
@@ -18,7 +16,7 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
   if (!keep_initial_inliers) {
     for (int i = 0; i < n; ++i) inlier[i] = 1;
   }
-  const double huber = std::sqrt(kChi2);
+  const double huber = std::sqrt(kInlierChi2);
   for (int round = 0; round < rounds; ++round) {
     const bool robust = round < rounds - 1;
     for (int it = 0; it < iterations; ++it) {
@@ -29,17 +27,12 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
         if (!inlier[i]) continue;
         const Eigen::Vector3d pc = T * p_world[i];
         if (pc.z() <= 1e-6) continue;
-        const double iz = 1.0 / pc.z();
         const Eigen::Vector2d e = K.project(pc) - obs[i];
         const double inv_s = 1.0 / sigma_px[i];
         const double chi = e.squaredNorm() * inv_s * inv_s;
         double w = inv_s * inv_s;
-        if (robust && chi > kChi2) w *= huber / std::sqrt(chi);
-        Eigen::Matrix<double, 2, 3> Jp;
-        Jp << K.fx * iz, 0, -K.fx * pc.x() * iz * iz, 0, K.fy * iz, -K.fy * pc.y() * iz * iz;
-        Eigen::Matrix<double, 2, 6> J;
-        J.leftCols<3>() = -Jp * skew(pc);  // rotation (left perturbation)
-        J.rightCols<3>() = Jp;             // translation
+        if (robust && chi > kInlierChi2) w *= huber / std::sqrt(chi);
+        const Eigen::Matrix<double, 2, 6> J = reprojection_jacobian(K.fx, K.fy, pc);
         H.noalias() += w * J.transpose() * J;
         g.noalias() += w * J.transpose() * e;
         ++used;
@@ -61,7 +54,7 @@ PoseRefineStats refine_pose(const PinholeIntrinsics& K, const Eigen::Vector3d* p
       }
       const Eigen::Vector2d e = K.project(pc) - obs[i];
       const double chi = e.squaredNorm() / (double(sigma_px[i]) * sigma_px[i]);
-      inlier[i] = chi <= kChi2 ? 1 : 0;
+      inlier[i] = chi <= kInlierChi2 ? 1 : 0;
     }
   }
   // Orthonormalise against drift from the repeated left updates.

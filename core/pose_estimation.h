@@ -24,6 +24,10 @@ struct PoseRefineStats {
   double rms_px = 0.0;  // over inliers
 };
 
+// Inlier gate of refine_pose: a squared normalised error above it (chi-square 2 DoF, 95%) is an
+// outlier.
+constexpr double kInlierChi2 = 5.991;
+
 // Eq. (1) with robust weights. `sigma_px[i]` is the measurement standard deviation of
 // observation i (pixels, grows with the pyramid level). Observations whose squared normalised
 // error exceeds 5.991 (chi-square 2 DoF, 95%) are classified outliers in `inlier[i]` (0/1);

@@ -41,14 +41,7 @@ double accumulate(const Eigen::Vector2d* px, const Eigen::Vector3d* pw, const ui
     cost += eu * eu + ev * ev;
     ++n;
     if (!H) continue;
-    // d(u,v)/dXc, then dXc/d(w, v) = [-[Xc]x | I].
-    Eigen::Matrix<double, 2, 3> Jp;
-    Jp << K.fx * iz, 0, -K.fx * Xc.x() * iz * iz, 0, K.fy * iz, -K.fy * Xc.y() * iz * iz;
-    Eigen::Matrix3d Xx;
-    Xx << 0, -Xc.z(), Xc.y(), Xc.z(), 0, -Xc.x(), -Xc.y(), Xc.x(), 0;
-    Eigen::Matrix<double, 2, 6> J;
-    J.leftCols<3>() = -Jp * Xx;
-    J.rightCols<3>() = Jp;
+    const Eigen::Matrix<double, 2, 6> J = reprojection_jacobian(K.fx, K.fy, Xc);
     H->noalias() += J.transpose() * J;
     g->noalias() += J.transpose() * Eigen::Vector2d(eu, ev);
   }
@@ -107,6 +100,69 @@ RefineResult refine_pose(const Eigen::Vector2d* pixels, const Eigen::Vector3d* p
   *t_cam_world = t;
   res.final_cost = accumulate(pixels, p_world, mask, count, K, R, t, nullptr, nullptr, nullptr);
   return res;
+}
+
+void PoseInformation::add(const PinholeIntrinsics& K, const Pose& T_cam_world,
+                          const Eigen::Vector3d& p_world, const Eigen::Vector2d& pixel,
+                          double sigma_px) {
+  const Eigen::Vector3d Xc = T_cam_world * p_world;
+  if (!(Xc.z() > 1e-6) || !(sigma_px > 0.0)) return;
+  const double w = 1.0 / (sigma_px * sigma_px);
+  const Eigen::Matrix<double, 2, 6> J = reprojection_jacobian(K.fx, K.fy, Xc);
+  H_.noalias() += w * J.transpose() * J;
+  chi2_ += w * (K.project(Xc) - pixel).squaredNorm();
+  ++n_;
+}
+
+namespace {
+
+// Mean of a chi-square (2 DoF) variable scaled by s2 and gated at `gate`:
+// s2 * E[X | X <= gate / s2], E[X | X <= x] = 2 - x e^(-x/2) / (1 - e^(-x/2)).
+double gated_chi2_mean(double s2, double gate) {
+  const double x = gate / s2;
+  const double e = std::exp(-0.5 * x);
+  return s2 * (2.0 - x * e / (1.0 - e));
+}
+
+}  // namespace
+
+double PoseInformation::variance_factor() const {
+  if (n_ < 4) return -1.0;  // 2n - 6 > 0 residual degrees of freedom
+  const double s2 = chi2_ / (2.0 * n_ - 6.0);
+  if (gate_chi2_ <= 0.0 || s2 <= 0.0) return s2;
+  // Solve gated_chi2_mean(s2g) = 2 s2 (the inliers' mean chi-square, dof-corrected); the left
+  // side increases with s2g towards gate / 2, and is at most 2 s2g, so s2g >= s2.
+  const double m = 2.0 * s2;
+  double lo = s2, hi = s2;
+  for (int k = 0; gated_chi2_mean(hi, gate_chi2_) < m; ++k) {
+    if (k == 40) return -1.0;  // no such noise: the residuals fill the gate
+    lo = hi;
+    hi *= 2.0;
+  }
+  for (int k = 0; k < 50; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (gated_chi2_mean(mid, gate_chi2_) < m ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+bool PoseInformation::covariance(const Pose& T_cam_world, std::array<double, 36>* out) const {
+  const double sigma0_sq = variance_factor();
+  if (sigma0_sq < 0.0) return false;
+  const Eigen::LLT<Eigen::Matrix<double, 6, 6>> llt(H_);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, 6, 6> H_inv = llt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  // (w, v) -> (dc, dtheta): dc = -R^T v, dtheta = -R^T w.
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  A.topRightCorner<3, 3>() = -T_cam_world.R.transpose();
+  A.bottomLeftCorner<3, 3>() = -T_cam_world.R.transpose();
+  Eigen::Matrix<double, 6, 6> S = sigma0_sq * (A * H_inv * A.transpose());
+  S = 0.5 * (S + S.transpose()).eval();
+  if (!S.allFinite()) return false;
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) (*out)[static_cast<size_t>(6 * r + c)] = S(r, c);
+  }
+  return true;
 }
 
 }  // namespace rdslam

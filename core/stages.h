@@ -33,16 +33,22 @@ struct TrackResult {
   Eigen::Vector3d p_world_cam{0, 0, 0};        // camera centre in the map frame
   Eigen::Quaterniond q_world_cam{1, 0, 0, 0};  // rotation camera -> world
   int inliers = 0;
-  double quality = 0.0;                 // inlier ratio in [0, 1]
-  std::array<double, 36> covariance{};  // row-major 6x6 [p, rotvec]; all -1 if unknown
-  int map_points = 0;                   // valid map points (for status)
-  int keyframes = 0;                    // valid keyframes (for status)
-  int64_t invalidated_points = 0;       // cumulative
-  double mapper_wait_ms = 0.0;  // time track() blocked on the mapper (tracker.sync_mapper only)
+  double quality = 0.0;  // inlier ratio in [0, 1]
+  // Row-major 6x6 covariance of the error [dc, dtheta] of (p_world_cam, q_world_cam): camera
+  // centre in world (map units), rotation vector of camera -> world in the world frame (rad),
+  // from the final eq. (1) refinement (core/pose_refine.h PoseInformation); all -1 unless the
+  // state is TRACKING / RELOCALIZED (lcmtypes/rdslam_pose_t.lcm).
+  std::array<double, 36> covariance{};
+  int map_points = 0;              // valid map points (for status)
+  int keyframes = 0;               // valid keyframes (for status)
+  int64_t invalidated_points = 0;  // cumulative
+  double mapper_wait_ms = 0.0;     // time track() blocked on the mapper (tracker.sync_mapper only)
   // The reference keyframe (the one sharing most of this frame's tracked points) of map epoch
   // `epoch`, and the frame's pose relative to it when tracked (camera -> reference keyframe);
   // -1 when the frame has none (not tracked, no keyframes yet). Evaluation re-anchors the
   // frame on the keyframe's final pose (MapperStage::final_keyframe_pose).
+  // `epoch` is the map's identity (rdslam.pose_t map_epoch): +1 at every map reset, after which
+  // the world frame and scale are the new map's.
   int ref_keyframe = -1;
   uint32_t epoch = 0;
   Eigen::Quaterniond q_ref_cam{1, 0, 0, 0};

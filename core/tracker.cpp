@@ -7,6 +7,7 @@
 
 #include "core/log.h"
 #include "core/matching.h"
+#include "core/pose_refine.h"
 #include "core/prefix_visitor.h"
 #include "core/relocalizer.h"
 
@@ -568,7 +569,15 @@ void Tracker::fill_result(TrackResult& r, bool found) const {
   r.q_world_cam = Eigen::Quaterniond(Twc.R).normalized();
   r.inliers = stats_.inliers;
   r.quality = cur_.f.count > 0 ? double(stats_.inliers) / cur_.f.count : 0.0;
-  r.covariance.fill(-1.0);
+  r.covariance.fill(-1.0);  // stays -1 unless found and computable (core/pose_refine.h)
+  if (found) {
+    PoseInformation info(kInlierChi2);  // over the final eq. (1) inliers at the published pose
+    for (int j = 0; j < cur_.f.count; ++j) {
+      if (cur_.pid[j] < 0) continue;
+      info.add(K_, T, cur_.p[j], Eigen::Vector2d(cur_.f.un[j].x, cur_.f.un[j].y), cur_.f.scale[j]);
+    }
+    info.covariance(T, &r.covariance);
+  }
   r.map_points = link_->points.load(std::memory_order_relaxed);
   r.keyframes = link_->keyframes.load(std::memory_order_relaxed);
   r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);

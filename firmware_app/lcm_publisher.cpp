@@ -34,8 +34,10 @@ bool LcmPublisher::send(const std::string& channel, const void* data, int size) 
 void LcmPublisher::on_frame(const FrameResult& fr) {
   const TrackResult& r = fr.result;
   ::rdslam::pose_t m;  // fixed-size arrays only: lives on the stack
+  m.version = ::rdslam::pose_t::VERSION;
   m.utime = fr.stamp_ns / 1000;
   m.seq = static_cast<int64_t>(fr.seq);
+  m.map_epoch = static_cast<int64_t>(r.epoch);
   for (int i = 0; i < 3; ++i) m.position[i] = r.p_world_cam[i];
   m.orientation[0] = r.q_world_cam.w();
   m.orientation[1] = r.q_world_cam.x();

@@ -1,4 +1,5 @@
-// Publishes the pipeline's output over LCM (issue 9 item 4): rdslam.pose_t on
+// Publishes the pipeline's output over LCM (issue 9 item 4): rdslam.pose_t (version
+// pose_t::VERSION, with the map epoch and the pose covariance of the TrackResult) on
 // lcm.pose_channel for every processed frame, rdslam.status_t on lcm.status_channel every
 // stats period (1 Hz), and optionally a libbot2-compatible bot_core.pose_t on
 // lcm.bot_core_pose_channel.
@@ -44,7 +45,7 @@ class LcmPublisher : public PipelineSink {
 
   const LcmParams params_;
   lcm_t* lcm_ = nullptr;
-  // Largest message is rdslam.pose_t: 8 + 8+8 + 24 + 32 + 288 + 8 + 4 + 1 + 8 bytes plus
+  // Largest message is rdslam.pose_t: 4 + 8+8+8 + 24 + 32 + 288 + 8 + 4 + 1 + 8 bytes plus
   // the 8-byte fingerprint: well under 1 KiB.
   alignas(8) uint8_t buf_[1024];
   std::atomic<uint64_t> poses_{0};

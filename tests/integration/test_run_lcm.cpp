@@ -4,6 +4,8 @@
 //   processed frame and every pose equals the ground-truth file (pass-through tracker).
 // - A separate Python process (the venv's lcm + the generated Python types) subscribes
 //   while the daemon replays EuRoC, like a robot's consumer would.
+// - The map epoch and the pose covariance reach a Python subscriber; rdslam.pose_t versions
+//   are told apart (tools/lcm/rdslam_msgs.py).
 // Each test uses its own ttl=0 URL port, so tests can run in parallel on one host.
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -120,6 +122,25 @@ std::vector<std::string> run_args(const std::string& source, const std::string& 
           "--log-level", "info"};
 }
 
+const std::string kPython = std::string(RDSLAM_SOURCE_DIR) + "/.venv/bin/python";
+
+// Writes `script` to DIR/NAME.py and runs it with the venv's Python and `args`, stdout and
+// stderr to DIR/NAME.out and DIR/NAME.err. With `ready`, the script's last argument is a path
+// it creates once subscribed, and this waits for it (10 s); pid -1 if it did not start.
+Child start_python(const std::string& dir, const std::string& name, const std::string& script,
+                   std::vector<std::string> args, bool ready) {
+  std::ofstream(dir + "/" + name + ".py") << script;
+  args.insert(args.begin(), {kPython, dir + "/" + name + ".py"});
+  const std::string ready_path = dir + "/" + name + ".ready";
+  if (ready) args.push_back(ready_path);
+  Child c = spawn(args, dir + "/" + name + ".out", dir + "/" + name + ".err");
+  for (int i = 0; ready && c.pid > 0 && i < 1000 && !exists(ready_path); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  if (ready && !exists(ready_path)) c.kill_and_reap();
+  return c;
+}
+
 TEST(RunLcm, LcmLoggerRecordsOnePosePerProcessedFrameEqualToGroundTruth) {
   const std::string kitti = kShared + "/data/kitti06_excerpt";
   if (!exists(kitti + "/poses.txt")) {
@@ -211,14 +232,10 @@ TEST(RunLcm, SeparatePythonProcessSubscribesWhileThePipelineRuns) {
   if (!exists(euroc + "/mav0/cam0/data.csv")) {
     GTEST_SKIP() << "shared data absent: " << euroc << " (needs ../shared/data)";
   }
-  const std::string python = std::string(RDSLAM_SOURCE_DIR) + "/.venv/bin/python";
-  ASSERT_TRUE(exists(python)) << "Python venv missing: run toolchain/install-deps.sh";
+  ASSERT_TRUE(exists(kPython)) << "Python venv missing: run toolchain/install-deps.sh";
   const std::string url = "udpm://239.255.76.67:7742?ttl=0";
   const std::string dir = temp_dir("runpy");
-  const std::string script = dir + "/subscriber.py";
-  {
-    std::ofstream py(script);
-    py << R"PY(import os, sys, time
+  const std::string script = R"PY(import os, sys, time
 sys.path.insert(0, sys.argv[1])
 import lcm
 from rdslam import pose_t, status_t
@@ -248,15 +265,8 @@ while time.time() < deadline:
 inorder = all(b > a for a, b in zip(got["seqs"], got["seqs"][1:]))
 print(got["poses"], got["tracking"], got["processed"], int(inorder), got["running_reports"])
 )PY";
-  }
-  const std::string ready = dir + "/ready";
-  Child sub =
-      spawn({python, script, RDSLAM_LCM_PY_DIR, url, ready}, dir + "/sub.out", dir + "/sub.err");
-  ASSERT_GT(sub.pid, 0);
-  for (int i = 0; i < 1000 && !exists(ready); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(exists(ready)) << "subscriber did not start: " << slurp(dir + "/sub.err");
+  Child sub = start_python(dir, "sub", script, {RDSLAM_LCM_PY_DIR, url}, true);
+  ASSERT_GT(sub.pid, 0) << "subscriber did not start: " << slurp(dir + "/sub.err");
 
   Child run = spawn(run_args("euroc:" + euroc, url, "T2_POSE", "T2_STATUS"), "", dir + "/run.err");
   int status = 0;
@@ -277,6 +287,203 @@ print(got["poses"], got["tracking"], got["processed"], int(inorder), got["runnin
   EXPECT_GE(reports, 2) << "1 Hz status during a 4.7 s replay, plus the final one";
   std::printf("[ measured ] EuRoC real-time replay: subscriber got %d poses of %d processed\n",
               poses, processed);
+}
+
+// Issue 23 item 8: a Python subscriber in its own process, decoding with
+// tools/lcm/rdslam_msgs.py, while `rdslam run` tracks (the real SLAM stages, lossless replay) a
+// synthetic scene whose image goes black for 36 frames: the tracker loses its two-keyframe map,
+// re-initializes, and the messages' map_epoch goes 0 -> 1. Every TRACKING / RELOCALIZED pose
+// carries a covariance (finite, symmetric, positive definite), every other pose all -1.
+TEST(RunLcm, PythonSubscriberSeesTheMapEpochChangeAndThePoseCovariance) {
+  ASSERT_TRUE(exists(kPython)) << "Python venv missing: run toolchain/install-deps.sh";
+  const std::string url = "udpm://239.255.76.67:7744?ttl=0";
+  const std::string dir = temp_dir("runepoch");
+  const std::string script = R"PY(import math, sys, time
+sys.path[:0] = [sys.argv[1], sys.argv[2]]
+import lcm, numpy as np
+import rdslam_msgs
+url, ready_path = sys.argv[3], sys.argv[4]
+lc = lcm.LCM(url)
+msgs = []
+lc.subscribe("T4_POSE", lambda ch, data: msgs.append(rdslam_msgs.decode_pose(data)))
+open(ready_path, "w").close()
+deadline, last = time.time() + 120, time.time()
+while time.time() < deadline:
+    if lc.handle_timeout(100) > 0:
+        last = time.time()
+    elif msgs and time.time() - last > 3.0:
+        break
+msgs.sort(key=lambda m: m.seq)
+tracked = {0: 0, 1: 0}
+cov_ok = cov_bad = untracked = untracked_bad = decreases = 0
+sig_c, sig_r = [], []
+for prev, m in zip([None] + msgs[:-1], msgs):
+    if prev is not None and m.map_epoch < prev.map_epoch:
+        decreases += 1
+    C = np.array(m.covariance).reshape(6, 6)
+    if m.state in (m.STATE_TRACKING, m.STATE_RELOCALIZED):
+        tracked[m.map_epoch] = tracked.get(m.map_epoch, 0) + 1
+        good = (np.all(np.isfinite(C)) and np.allclose(C, C.T, rtol=0, atol=1e-12 * abs(C).max())
+                and np.all(np.diag(C) > 0) and np.linalg.eigvalsh(C).min() > 0)
+        cov_ok += int(good)
+        cov_bad += int(not good)
+        if good:
+            sig_c.append(math.sqrt(np.trace(C[:3, :3])))
+            sig_r.append(math.degrees(math.sqrt(np.trace(C[3:, 3:]))))
+    else:
+        untracked += 1
+        untracked_bad += int(not np.all(C == -1.0))
+epochs = sorted(set(m.map_epoch for m in msgs))
+print(len(msgs), ",".join(str(e) for e in epochs), tracked[0], tracked[1], cov_ok, cov_bad,
+      untracked, untracked_bad, decreases, min(m.version for m in msgs),
+      np.median(sig_c) if sig_c else -1, np.median(sig_r) if sig_r else -1)
+)PY";
+  Child sub =
+      start_python(dir, "sub", script,
+                   {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", url}, true);
+  ASSERT_GT(sub.pid, 0) << "subscriber did not start: " << slurp(dir + "/sub.err");
+
+  std::vector<std::string> args =
+      run_args("synth:" + std::string(RDSLAM_SOURCE_DIR) + "/tests/data/lcm/map_reset.yaml", url,
+               "T4_POSE", "T4_STATUS");
+  // The SLAM stages, lossless; no keyframes after the initial two, so that losing the map
+  // resets it (tracker.reset_after_lost_frames applies to maps of <= 2 keyframes).
+  for (const char* kv : {"pipeline.stages=slam", "pipeline.replay_speed=0",
+                         "tracker.young_map_keyframes=0", "tracker.max_keyframe_interval=100000",
+                         "tracker.m1=1", "tracker.keyframe_overlap_ratio=0"}) {
+    args.push_back("--set");
+    args.push_back(kv);
+  }
+  Child run = spawn(args, "", dir + "/run.err");
+  int status = 0;
+  ASSERT_TRUE(run.wait_exit(120000, &status));
+  const std::string run_err = slurp(dir + "/run.err");
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << run_err;
+  EXPECT_NE(run_err.find("re-initializing"), std::string::npos) << run_err;
+  int sub_status = 0;
+  ASSERT_TRUE(sub.wait_exit(60000, &sub_status));
+  ASSERT_TRUE(WIFEXITED(sub_status) && WEXITSTATUS(sub_status) == 0) << slurp(dir + "/sub.err");
+
+  std::istringstream out(slurp(dir + "/sub.out"));
+  int poses = -1, tracked0 = -1, tracked1 = -1, cov_ok = -1, cov_bad = -1, untracked = -1;
+  int untracked_bad = -1, decreases = -1, version = -1;
+  std::string epochs;
+  double sig_c = -1, sig_r = -1;
+  out >> poses >> epochs >> tracked0 >> tracked1 >> cov_ok >> cov_bad >> untracked >>
+      untracked_bad >> decreases >> version >> sig_c >> sig_r;
+  ASSERT_GE(poses, 100) << "of 120 frames; lossless replay, ttl=0 multicast on this host";
+  EXPECT_EQ(version, 2);
+  EXPECT_EQ(epochs, "0,1") << "one map reset";
+  EXPECT_EQ(decreases, 0) << "map_epoch never goes back";
+  EXPECT_GE(tracked0, 10) << "tracked in the first map";
+  EXPECT_GE(tracked1, 10) << "tracked in the second map";
+  EXPECT_EQ(cov_ok, tracked0 + tracked1) << "every tracked pose has a covariance";
+  EXPECT_EQ(cov_bad, 0);
+  EXPECT_GE(untracked, 30) << "LOST and INITIALIZING frames";
+  EXPECT_EQ(untracked_bad, 0) << "untracked poses: covariance all -1";
+  std::printf(
+      "[ measured ] map_reset over LCM: %d poses, tracked %d (epoch 0) + %d (epoch 1), %d "
+      "untracked; median sqrt(trace) of the centre covariance %.4g map units, rotation %.4g "
+      "deg\n",
+      poses, tracked0, tracked1, untracked, sig_c, sig_r);
+}
+
+// Issue 23 item 8: rdslam.pose_t versions. LCM's fingerprint already makes a subscriber of
+// one version refuse another's messages; tools/lcm/rdslam_msgs.py makes the refusal say which
+// versions met. Over LCM (ttl=0) in a separate Python process: a version 1 message (types
+// generated from tests/data/lcm/rdslam_pose_t_v1.lcm, the old definition) and a hypothetical
+// version 3 one are rejected by decode_pose() with errors naming both fingerprints and versions;
+// version 2 decodes; an old subscriber (version 1 types) cannot decode version 2 either: a
+// ValueError, never a silently misread pose.
+TEST(RunLcm, PoseDecoderNamesBothVersionsOnAFingerprintMismatch) {
+  ASSERT_TRUE(exists(kPython)) << "Python venv missing: run toolchain/install-deps.sh";
+  const std::string lcm_gen = find_program("lcm-gen");
+  ASSERT_FALSE(lcm_gen.empty()) << "lcm-gen not found: install liblcm-bin";
+  const std::string dir = temp_dir("posever");
+  const std::string data = std::string(RDSLAM_SOURCE_DIR) + "/tests/data/lcm/";
+  for (const char* v : {"v1", "v3"}) {
+    Child gen =
+        spawn({lcm_gen, "--python", "--ppath", dir + "/" + v, data + "rdslam_pose_t_" + v + ".lcm"},
+              "", dir + "/gen.err");
+    int st = 0;
+    ASSERT_TRUE(gen.wait_exit(20000, &st));
+    ASSERT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0) << slurp(dir + "/gen.err");
+  }
+  const std::string script = R"PY(import importlib.util, sys
+sys.path[:0] = [sys.argv[1], sys.argv[2]]
+import lcm
+import rdslam_msgs
+from rdslam import pose_t
+
+def load(path, name):
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.pose_t
+
+old = load(sys.argv[3] + "/v1/rdslam/pose_t.py", "pose_t_v1")
+new3 = load(sys.argv[3] + "/v3/rdslam/pose_t.py", "pose_t_v3")
+m3 = new3()
+m3.version = new3.VERSION
+m2 = pose_t()
+m2.version, m2.map_epoch, m2.seq = pose_t.VERSION, 5, 9
+lc = lcm.LCM(sys.argv[4])
+got = []
+lc.subscribe("T5_POSE", lambda ch, data: got.append(data))
+for m in (old(), m3, m2):
+    lc.publish("T5_POSE", m.encode())
+while len(got) < 3 and lc.handle_timeout(2000) > 0:
+    pass
+print("received", len(got))
+for data in got:
+    try:
+        m = rdslam_msgs.decode_pose(data)
+        print("decoded version %d epoch %d seq %d" % (m.version, m.map_epoch, m.seq))
+    except rdslam_msgs.VersionMismatch as e:
+        print("mismatch %s %s: %s" % (e.message_version, e.expected_version, e))
+    try:
+        old.decode(data)
+        print("old subscriber decoded")
+    except ValueError as e:
+        print("old subscriber ValueError: %s" % e)
+)PY";
+  Child py = start_python(dir, "versions", script,
+                          {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", dir,
+                           "udpm://239.255.76.67:7745?ttl=0"},
+                          false);
+  int st = 0;
+  ASSERT_TRUE(py.wait_exit(30000, &st));
+  ASSERT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0) << slurp(dir + "/versions.err");
+  const std::string out = slurp(dir + "/versions.out");
+  std::istringstream lines(out);
+  std::vector<std::string> l;
+  for (std::string s; std::getline(lines, s);) l.push_back(s);
+  ASSERT_EQ(l.size(), 7u) << out;
+  EXPECT_EQ(l[0], "received 3");
+  char v2[32];
+  std::snprintf(v2, sizeof(v2), "0x%016llx",
+                static_cast<unsigned long long>(::rdslam::pose_t::getHash()));
+  // Version 1 (the fingerprint rdslam published until this change) to a version 2 subscriber.
+  EXPECT_EQ(l[1].rfind("mismatch 1 2: rdslam.pose_t version mismatch: message fingerprint "
+                       "0x9e8a9bc1e75bdc76, expected " +
+                           std::string(v2) +
+                           " (version 2): the message is version 1, from an "
+                           "older rdslam",
+                       0),
+            0u)
+      << l[1];
+  EXPECT_EQ(l[2], "old subscriber decoded") << "version 1 to version 1";
+  EXPECT_EQ(l[3].rfind("mismatch 3 2: rdslam.pose_t version mismatch: message fingerprint 0x", 0),
+            0u)
+      << l[3];
+  EXPECT_NE(l[3].find(", expected " + std::string(v2) +
+                      " (version 2): the message is version 3, from a newer rdslam"),
+            std::string::npos)
+      << l[3];
+  EXPECT_EQ(l[4], "old subscriber ValueError: Decode error");
+  EXPECT_EQ(l[5], "decoded version 2 epoch 5 seq 9");
+  EXPECT_EQ(l[6], "old subscriber ValueError: Decode error") << "version 2 to version 1: loud";
 }
 
 // The daemon on a long recording (80 s of video): SIGTERM, as systemd sends it, stops every

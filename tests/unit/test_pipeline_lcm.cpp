@@ -59,7 +59,8 @@ TEST(LcmPublisher, PoseStatusAndBotCorePoseDecodeWithTheGeneratedTypes) {
   fr.result.q_world_cam = Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5);
   fr.result.inliers = 123;
   fr.result.quality = 0.75;
-  fr.result.covariance.fill(-1.0);
+  for (int i = 0; i < 36; ++i) fr.result.covariance[size_t(i)] = 0.01 * i;
+  fr.result.epoch = 3;
   pub.on_frame(fr);
   PipelineStatus s;
   s.mono_ns = 5000000000LL;
@@ -90,7 +91,12 @@ TEST(LcmPublisher, PoseStatusAndBotCorePoseDecodeWithTheGeneratedTypes) {
   EXPECT_EQ(got.pose.position[2], 0.25);
   EXPECT_EQ(got.pose.orientation[0], 0.5);  // w first
   EXPECT_EQ(got.pose.orientation[2], -0.5);
-  EXPECT_EQ(got.pose.covariance[35], -1.0);
+  EXPECT_EQ(got.pose.version, ::rdslam::pose_t::VERSION);
+  EXPECT_EQ(got.pose.version, 2);
+  EXPECT_EQ(got.pose.map_epoch, 3);
+  EXPECT_EQ(got.pose.covariance[0], 0.0);
+  EXPECT_EQ(got.pose.covariance[7], 0.01 * 7);
+  EXPECT_EQ(got.pose.covariance[35], 0.01 * 35);
   EXPECT_EQ(got.pose.quality, 0.75);
   EXPECT_EQ(got.pose.inliers, 123);
   EXPECT_EQ(got.pose.state, int8_t{::rdslam::pose_t::STATE_TRACKING});
