@@ -1,6 +1,7 @@
 #include "core/camera.h"
 
-#include <opencv2/calib3d.hpp>
+#include <Eigen/LU>
+#include <cmath>
 
 namespace rdslam {
 
@@ -21,7 +22,9 @@ void CameraModel::visit(ParamVisitor& v) {
 }
 
 bool CameraModel::has_distortion() const {
-  return k1 != 0.0 || k2 != 0.0 || p1 != 0.0 || p2 != 0.0 || k3 != 0.0 || k4 != 0.0;
+  // Equidistant: raw radius f theta, ideal f tan theta, whatever k1..k4 say.
+  return is_equidistant() || k1 != 0.0 || k2 != 0.0 || p1 != 0.0 || p2 != 0.0 || k3 != 0.0 ||
+         k4 != 0.0;
 }
 
 Eigen::Matrix3d CameraModel::K_eigen() const {
@@ -54,16 +57,126 @@ std::string CameraModel::validate() const {
   return {};
 }
 
+Eigen::Vector2d CameraModel::distort_normalised(const Eigen::Vector2d& q,
+                                                Eigen::Matrix2d* j) const {
+  const double x = q.x(), y = q.y(), r2 = x * x + y * y;
+  if (is_equidistant()) {
+    // cv::fisheye: theta = atan(r), theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8),
+    // distorted = q theta_d / r.
+    const double r = std::sqrt(r2);
+    if (r < 1e-12) {
+      if (j != nullptr) j->setIdentity();
+      return q;
+    }
+    const double th = std::atan(r), t2 = th * th;
+    const double poly = 1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)));
+    const double th_d = th * poly;
+    const double s = th_d / r;
+    if (j != nullptr) {
+      // d theta_d / d theta, d theta / d r = 1 / (1 + r^2); d s / d r = (theta_d' r - theta_d) /
+      // r^2.
+      const double dth_d = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)));
+      const double ds_dr = (dth_d / (1 + r2) * r - th_d) / r2;
+      // J = s I + (ds/dr / r) q q^T
+      *j = s * Eigen::Matrix2d::Identity() + (ds_dr / r) * q * q.transpose();
+    }
+    return s * q;
+  }
+  // cv::projectPoints' radial-tangential model (k1 k2 p1 p2 k3).
+  const double radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3));
+  if (j != nullptr) {
+    const double dr = k1 + r2 * (2 * k2 + r2 * 3 * k3);  // d radial / d r2
+    (*j)(0, 0) = radial + 2 * x * x * dr + 2 * p1 * y + 6 * p2 * x;
+    (*j)(0, 1) = 2 * x * y * dr + 2 * p1 * x + 2 * p2 * y;
+    (*j)(1, 0) = 2 * x * y * dr + 2 * p1 * x + 2 * p2 * y;
+    (*j)(1, 1) = radial + 2 * y * y * dr + 6 * p1 * y + 2 * p2 * x;
+  }
+  return {x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+          y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y};
+}
+
+Eigen::Vector2d CameraModel::distort(const Eigen::Vector2d& ideal) const {
+  if (!has_distortion()) return ideal;
+  const Eigen::Vector2d d =
+      distort_normalised({(ideal.x() - cx) / fx, (ideal.y() - cy) / fy}, nullptr);
+  return {fx * d.x() + cx, fy * d.y() + cy};
+}
+
+Eigen::Vector2d CameraModel::project(const Eigen::Vector3d& p_cam) const {
+  const double iz = 1.0 / p_cam.z();
+  const Eigen::Vector2d ideal(fx * p_cam.x() * iz + cx, fy * p_cam.y() * iz + cy);
+  return has_distortion() ? distort(ideal) : ideal;
+}
+
+Eigen::Matrix2d CameraModel::distort_jacobian(const Eigen::Vector2d& ideal) const {
+  if (!has_distortion()) return Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d j;
+  distort_normalised({(ideal.x() - cx) / fx, (ideal.y() - cy) / fy}, &j);
+  // Pixels: diag(fx, fy) J diag(1/fx, 1/fy).
+  j(0, 1) *= fx / fy;
+  j(1, 0) *= fy / fx;
+  return j;
+}
+
+bool CameraModel::undistort(const Eigen::Vector2d& raw, Eigen::Vector2d* ideal) const {
+  if (!has_distortion()) {
+    *ideal = raw;
+    return true;
+  }
+  const Eigen::Vector2d target((raw.x() - cx) / fx, (raw.y() - cy) / fy);
+  Eigen::Vector2d q = target;
+  if (is_equidistant()) {
+    // Radial: solve theta_d(theta) = |target| for theta (Newton from theta = theta_d), then
+    // the ideal radius is tan(theta).
+    const double rd = target.norm();
+    if (rd < 1e-12) {
+      *ideal = raw;
+      return true;
+    }
+    double th = rd;
+    bool ok = false;
+    for (int it = 0; it < 50; ++it) {
+      const double t2 = th * th;
+      const double f = th * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) - rd;
+      const double df = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)));
+      if (!(std::abs(df) > 1e-12)) return false;
+      const double step = f / df;
+      th -= step;
+      if (std::abs(step) < 1e-14) {
+        ok = true;
+        break;
+      }
+    }
+    if (!ok || !(th > 0) || th >= M_PI / 2 - 1e-9) return false;
+    q = target * (std::tan(th) / rd);
+  } else {
+    bool ok = false;
+    for (int it = 0; it < 100; ++it) {
+      Eigen::Matrix2d j;
+      const Eigen::Vector2d e = distort_normalised(q, &j) - target;
+      const double det = j.determinant();
+      if (!(std::abs(det) > 1e-12)) return false;
+      const Eigen::Vector2d step = j.inverse() * e;
+      // Damped: a full step may leave the region where the model is monotonic.
+      const double n = step.norm(), cap = 0.25 * (1.0 + q.norm());
+      q -= n > cap ? step * (cap / n) : step;
+      if (n < 1e-14 * (1.0 + q.norm())) {
+        ok = true;
+        break;
+      }
+    }
+    if (!ok) return false;
+  }
+  *ideal = Eigen::Vector2d(fx * q.x() + cx, fy * q.y() + cy);
+  return std::isfinite(ideal->x()) && std::isfinite(ideal->y());
+}
+
 void CameraModel::undistort_points(const std::vector<cv::Point2f>& in,
                                    std::vector<cv::Point2f>& out) const {
-  if (!has_distortion() || in.empty()) {
-    out = in;
-    return;
-  }
-  if (is_equidistant()) {
-    cv::fisheye::undistortPoints(in, out, K(), dist_coeffs(), cv::noArray(), K());
-  } else {
-    cv::undistortPoints(in, out, K(), dist_coeffs(), cv::noArray(), K());
+  out.resize(in.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    Eigen::Vector2d u;
+    out[i] = undistort({in[i].x, in[i].y}, &u) ? cv::Point2f(float(u.x()), float(u.y())) : in[i];
   }
 }
 

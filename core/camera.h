@@ -1,12 +1,21 @@
 // Pinhole camera with radial-tangential (OpenCV k1 k2 p1 p2 k3) or equidistant (fisheye
 // k1..k4, stored in k1 k2 p1 p2 order as k1 k2 k3 k4) distortion.
 //
+// Two kinds of pixel: raw pixels (the image as the lens forms it) and ideal pixels (the same
+// K without distortion: the pinhole geometry the tracker and mapper work in). distort() maps
+// ideal to raw, undistort() raw to ideal, both with OpenCV's models (cv::projectPoints,
+// cv::fisheye::projectPoints); the equidistant model is a distortion even with k1..k4 = 0
+// (raw radius f theta, ideal radius f tan theta).
+//
 // Ownership: plain value type. Threads: immutable after start-up; any thread may read it.
+// distort, project, distort_jacobian and undistort allocate nothing (real-time loops may call
+// them); undistort_points allocates (start-up and tests).
 #pragma once
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "core/params.h"
 
@@ -38,8 +47,23 @@ struct CameraModel {
   // Cross-field validation; returns an empty string when valid, otherwise a message that
   // names the key. Field ranges are checked by the loader.
   std::string validate() const;
-  // Undistort pixel coordinates to ideal pinhole pixels (same K). Allocates: start-up/tests.
+  // Ideal pixel -> raw pixel.
+  Eigen::Vector2d distort(const Eigen::Vector2d& ideal) const;
+  // Camera-frame point (z > 0) -> raw pixel.
+  Eigen::Vector2d project(const Eigen::Vector3d& p_cam) const;
+  // d raw / d ideal at an ideal pixel: how a small window around it is stretched in the image.
+  Eigen::Matrix2d distort_jacobian(const Eigen::Vector2d& ideal) const;
+  // Raw pixel -> ideal pixel by Newton's method on distort() (|distort(ideal) - raw| below
+  // 1e-9 px). False when it does not converge, or (equidistant) the ray lies 90 degrees or
+  // more off the optical axis and has no ideal pixel.
+  bool undistort(const Eigen::Vector2d& raw, Eigen::Vector2d* ideal) const;
+  // undistort() of each point (a point without an ideal pixel keeps its raw coordinates).
+  // Allocates: start-up/tests.
   void undistort_points(const std::vector<cv::Point2f>& in, std::vector<cv::Point2f>& out) const;
+
+ private:
+  // Distortion in normalised coordinates (x/z, y/z), with its Jacobian when j != nullptr.
+  Eigen::Vector2d distort_normalised(const Eigen::Vector2d& q, Eigen::Matrix2d* j) const;
 };
 
 }  // namespace rdslam

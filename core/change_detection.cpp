@@ -1,5 +1,6 @@
 #include "core/change_detection.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <limits>
 
@@ -154,13 +155,26 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
                              double scale, int window, int search_d, bool normalise,
                              double accept) {
+  if (!(scale > 0) || !std::isfinite(scale)) return std::numeric_limits<double>::infinity();
+  return appearance_difference(keyframe_image, x, current_image, x_prime,
+                               Eigen::Matrix2d(scale * Eigen::Matrix2d::Identity()), window,
+                               search_d, normalise, accept);
+}
+
+double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
+                             const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
+                             const Eigen::Matrix2d& A, int window, int search_d, bool normalise,
+                             double accept) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   if (keyframe_image.empty() || current_image.empty() ||
       keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
-      current_image.depth() != CV_8U || !(scale > 0) || !std::isfinite(scale) || window < 1 ||
+      current_image.depth() != CV_8U || !A.allFinite() || !(A.determinant() > 0) || window < 1 ||
       window > kMaxAppearanceWindow) {
     return kInf;
   }
+  // How far the warped grid reaches from x' per keyframe-window pixel, along x and y.
+  const double ax = std::fabs(A(0, 0)) + std::fabs(A(0, 1));
+  const double ay = std::fabs(A(1, 0)) + std::fabs(A(1, 1));
   const int h = window / 2;
   const int ch = keyframe_image.channels();
   // The keyframe window must lie inside the keyframe image (integer pixels around x).
@@ -170,10 +184,10 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
     return kInf;
   }
   // The warped window plus the search margin must lie inside the current image.
-  const double reach = scale * h + search_d + 1;
-  if (x_prime.x() - reach < 0 || x_prime.y() - reach < 0 ||
-      x_prime.x() + reach >= current_image.cols - 1 ||
-      x_prime.y() + reach >= current_image.rows - 1) {
+  const double reach_x = ax * h + search_d + 1, reach_y = ay * h + search_d + 1;
+  if (x_prime.x() - reach_x < 0 || x_prime.y() - reach_y < 0 ||
+      x_prime.x() + reach_x >= current_image.cols - 1 ||
+      x_prime.y() + reach_y >= current_image.rows - 1) {
     return kInf;
   }
   const int w = 2 * h + 1;
@@ -214,16 +228,18 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
   if (normalise && k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture
   const double off_x = kx - x.x(), off_y = ky - x.y();                        // sub-pixel part of x
-  const double reach_g = scale * (h + D) + 1;
-  if (x_prime.x() - reach_g < 0 || x_prime.y() - reach_g < 0 ||
-      x_prime.x() + reach_g >= current_image.cols - 1 ||
-      x_prime.y() + reach_g >= current_image.rows - 1) {
+  const double reach_gx = ax * (h + D) + 1, reach_gy = ay * (h + D) + 1;
+  if (x_prime.x() - reach_gx < 0 || x_prime.y() - reach_gy < 0 ||
+      x_prime.x() + reach_gx >= current_image.cols - 1 ||
+      x_prime.y() + reach_gy >= current_image.rows - 1) {
     return kInf;
   }
   for (int gy = 0; gy < gw; ++gy) {
-    const double cy = x_prime.y() + scale * (gy - h - D + off_y);
+    const double oy = gy - h - D + off_y;
     for (int gx = 0; gx < gw; ++gx) {
-      const double cx = x_prime.x() + scale * (gx - h - D + off_x);
+      const double ox = gx - h - D + off_x;
+      const double cx = x_prime.x() + (A(0, 0) * ox + A(0, 1) * oy);
+      const double cy = x_prime.y() + (A(1, 0) * ox + A(1, 1) * oy);
       for (int c = 0; c < ch; ++c)
         grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
     }

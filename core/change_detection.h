@@ -203,6 +203,15 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
                              double scale, int window, int search_d, bool normalise = false,
                              double accept = -std::numeric_limits<double>::infinity());
+// The same with a general linear warp of the window: the current image is sampled at
+// y' = x' + A (y - x + d) (the form above: A = scale I). A lens stretches a window differently
+// at x in the keyframe and at x' in the current frame: with x, x' raw pixels, A = scale J' J^-1
+// (J, J' the lens's CameraModel::distort_jacobian there; core/map_updater.cpp).
+double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
+                             const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
+                             const Eigen::Matrix2d& warp, int window, int search_d,
+                             bool normalise = false,
+                             double accept = -std::numeric_limits<double>::infinity());
 
 // A tracked point y of the current frame near x': its pixel, its 3D point X_y's depth in the
 // current camera, and X_y's projection into the keyframe where X first appeared.

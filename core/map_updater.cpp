@@ -1,5 +1,6 @@
 #include "core/map_updater.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -28,14 +29,79 @@ InvalidationCause cause_of(PointDecision d) {
 }
 }  // namespace
 
+namespace {
+CameraModel undistorted_camera(const PinholeIntrinsics& K) {
+  CameraModel c;
+  c.fx = K.fx;
+  c.fy = K.fy;
+  c.cx = K.cx;
+  c.cy = K.cy;
+  return c;
+}
+}  // namespace
+
 MapUpdater::MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K,
                        double redundant_fraction)
-    : params_(params), K_(K), redundant_fraction_(redundant_fraction) {
+    : MapUpdater(params, undistorted_camera(K), redundant_fraction) {}
+
+MapUpdater::MapUpdater(const ChangeDetectionParams& params, const CameraModel& camera,
+                       double redundant_fraction)
+    : params_(params),
+      camera_(camera),
+      lens_(camera.has_distortion()),
+      K_{camera.fx, camera.fy, camera.cx, camera.cy},
+      redundant_fraction_(redundant_fraction) {
   // Algorithm 1 compares D_c with the threshold of the score in use.
   if (params_.normalise_appearance) params_.tau_c = params_.tau_c_relative;
   cell_px_ = std::max(params_.r1, 4.0);
   selected_.resize(kMaxSelected);
   neighbours_.resize(kMaxNeighbours);
+  if (lens_) {
+    // The ideal pixels of the image's border bound those of every pixel (the lens maps the
+    // image's inside to the inside of its border's image).
+    double b[4] = {1e300, 1e300, -1e300, -1e300};
+    auto add = [&](double x, double y) {
+      Eigen::Vector2d u;
+      if (!camera_.undistort(Eigen::Vector2d(x, y), &u)) return;
+      b[0] = std::min(b[0], u.x());
+      b[1] = std::min(b[1], u.y());
+      b[2] = std::max(b[2], u.x());
+      b[3] = std::max(b[3], u.y());
+    };
+    for (int x = 0; x < camera_.width; ++x) {
+      add(x, 0);
+      add(x, camera_.height - 1);
+    }
+    for (int y = 0; y < camera_.height; ++y) {
+      add(0, y);
+      add(camera_.width - 1, y);
+    }
+    if (b[0] <= b[2] && b[1] <= b[3]) std::copy(b, b + 4, ideal_box_);
+  }
+}
+
+MapUpdater::Pixel MapUpdater::pixel_of_ideal(const Eigen::Vector2d& ideal) const {
+  return {ideal, lens_ ? camera_.distort(ideal) : ideal};
+}
+
+MapUpdater::Pixel MapUpdater::pixel(const Eigen::Vector3d& p_cam) const {
+  return pixel_of_ideal(K_.project(p_cam));
+}
+
+double MapUpdater::window_difference(const cv::Mat& image_a, const Pixel& a, const cv::Mat& image_b,
+                                     const Pixel& b, double scale, int search_d,
+                                     double accept) const {
+  if (!lens_) {
+    return appearance_difference(image_a, a.raw, image_b, b.raw, scale, params_.window, search_d,
+                                 params_.normalise_appearance, accept);
+  }
+  // Raw offset at a -> ideal (J_a^-1) -> ideal at b (depth ratio) -> raw at b (J_b).
+  const Eigen::Matrix2d J_a = camera_.distort_jacobian(a.ideal);
+  const Eigen::Matrix2d J_b = camera_.distort_jacobian(b.ideal);
+  if (!(std::abs(J_a.determinant()) > 1e-12)) return std::numeric_limits<double>::infinity();
+  const Eigen::Matrix2d warp = scale * J_b * J_a.inverse();
+  return appearance_difference(image_a, a.raw, image_b, b.raw, warp, params_.window, search_d,
+                               params_.normalise_appearance, accept);
 }
 
 void MapUpdater::reset() {
@@ -54,15 +120,21 @@ const ColorHistogram& MapUpdater::keyframe_histogram(const Keyframe& kf) {
 }
 
 void MapUpdater::build_grid(int width, int height) {
-  grid_cols_ = std::max(1, static_cast<int>(std::ceil(width / cell_px_)));
-  grid_rows_ = std::max(1, static_cast<int>(std::ceil(height / cell_px_)));
+  if (!lens_) {
+    ideal_box_[2] = width;
+    ideal_box_[3] = height;
+  }
+  grid_cols_ = std::max(1, static_cast<int>(std::ceil((ideal_box_[2] - ideal_box_[0]) / cell_px_)));
+  grid_rows_ = std::max(1, static_cast<int>(std::ceil((ideal_box_[3] - ideal_box_[1]) / cell_px_)));
   const size_t cells = size_t(grid_cols_) * grid_rows_;
   cell_start_.assign(cells + 1, 0);
   cell_fill_.assign(cells, 0);
   cell_items_.resize(tracked_.size());
   auto cell_of = [&](const Eigen::Vector2d& px) {
-    const int cx = std::clamp(static_cast<int>(px.x() / cell_px_), 0, grid_cols_ - 1);
-    const int cy = std::clamp(static_cast<int>(px.y() / cell_px_), 0, grid_rows_ - 1);
+    const int cx =
+        std::clamp(static_cast<int>((px.x() - ideal_box_[0]) / cell_px_), 0, grid_cols_ - 1);
+    const int cy =
+        std::clamp(static_cast<int>((px.y() - ideal_box_[1]) / cell_px_), 0, grid_rows_ - 1);
     return cy * grid_cols_ + cx;
   };
   for (const Tracked& t : tracked_) ++cell_start_[cell_of(t.pixel) + 1];
@@ -76,10 +148,11 @@ void MapUpdater::build_grid(int width, int height) {
 template <class F>
 void MapUpdater::for_each_tracked_within(const Eigen::Vector2d& x, double radius, F&& f) const {
   const double r2 = radius * radius;
-  const int x0 = std::max(0, static_cast<int>((x.x() - radius) / cell_px_));
-  const int x1 = std::min(grid_cols_ - 1, static_cast<int>((x.x() + radius) / cell_px_));
-  const int y0 = std::max(0, static_cast<int>((x.y() - radius) / cell_px_));
-  const int y1 = std::min(grid_rows_ - 1, static_cast<int>((x.y() + radius) / cell_px_));
+  const double gx = x.x() - ideal_box_[0], gy = x.y() - ideal_box_[1];
+  const int x0 = std::max(0, static_cast<int>((gx - radius) / cell_px_));
+  const int x1 = std::min(grid_cols_ - 1, static_cast<int>((gx + radius) / cell_px_));
+  const int y0 = std::max(0, static_cast<int>((gy - radius) / cell_px_));
+  const int y1 = std::min(grid_rows_ - 1, static_cast<int>((gy + radius) / cell_px_));
   for (int cy = y0; cy <= y1; ++cy) {
     for (int cx = x0; cx <= x1; ++cx) {
       const int c = cy * grid_cols_ + cx;
@@ -198,8 +271,10 @@ void MapUpdater::flow_events(Map& map, const UpdateFrame& f, MapUpdateStats& st,
       fy_.resize(f.count);
       keep_.assign(f.count, 1);
       for (int i = 0; i < f.count; ++i) {
-        fx_[i] = f.un[i].x;
-        fy_[i] = f.un[i].y;
+        // The flow field is in raw pixels.
+        const Eigen::Vector2d raw = pixel_of_ideal(Eigen::Vector2d(f.un[i].x, f.un[i].y)).raw;
+        fx_[i] = static_cast<float>(raw.x());
+        fy_[i] = static_cast<float>(raw.y());
         if (f.point_of[i] < 0) keep_[i] = 0;
       }
       reject_by_flow(flow_, fx_.data(), fy_.data(), f.count, params_.flow_threshold_px * gap,
@@ -257,20 +332,21 @@ double MapUpdater::ray_difference(Map& map, const MapPoint& p, const Keyframe& k
   const Eigen::Vector3d a = T_cam_world * (kf_c + bearing / inv_near);
   const Eigen::Vector3d b = T_cam_world * (kf_c + bearing / inv_far);
   if (a.z() <= 1e-9 || b.z() <= 1e-9) return kInf;
-  const double len = (K_.project(a) - K_.project(b)).norm();
+  const double len = (pixel(a).raw - pixel(b).raw).norm();
   // One sample per pixel of the segment (eq. (2)'s local search covers the pixel between),
   // at most kMaxRaySamples: the far end of a long segment is not the point any more.
   const int steps = std::clamp(static_cast<int>(std::ceil(len)), 1, kMaxRaySamples);
   const cv::Point2f& kp = kf.features.kps[feat].pt;
+  const Pixel x_kf{Eigen::Vector2d(kf.features.un[feat].x, kf.features.un[feat].y),
+                   Eigen::Vector2d(kp.x, kp.y)};
   double best = kInf;
   for (int s = 0; s <= steps; ++s) {
     const double inv_z = inv_near + (inv_far - inv_near) * s / steps;
     const double z = 1.0 / inv_z;
     const Eigen::Vector3d pc = T_cam_world * (kf_c + bearing * z);
     if (pc.z() <= 1e-9) continue;
-    const double d = appearance_difference(
-        kf.image, Eigen::Vector2d(kp.x, kp.y), image, K_.project(pc), z / pc.z(), params_.window,
-        std::min(params_.search_d, 1), params_.normalise_appearance, params_.tau_c);
+    const double d = window_difference(kf.image, x_kf, image, pixel(pc), z / pc.z(),
+                                       std::min(params_.search_d, 1), params_.tau_c);
     best = std::min(best, d);
     if (best <= params_.tau_c) break;  // found: X's surface is still there
   }
@@ -299,14 +375,16 @@ bool MapUpdater::recent_frames_agree(const Eigen::Vector3d& p_world, const cv::M
   // The oldest usable recent frame that sees the point: the widest baseline and the longest
   // time for an object to have moved.
   const Recent* oldest = nullptr;
-  Eigen::Vector2d u_oldest;
+  Pixel u_oldest;
   double z_oldest = 0.0;
   for (const Recent& r : history_) {
     if (!usable(r, image, stamp_ns)) continue;
     const Eigen::Vector3d q = r.T_cam_world * p_world;
     if (q.z() <= 1e-9) continue;
-    const Eigen::Vector2d u = K_.project(q);
-    if (u.x() < 0 || u.y() < 0 || u.x() >= image.cols || u.y() >= image.rows) continue;
+    const Pixel u = pixel(q);
+    if (u.raw.x() < 0 || u.raw.y() < 0 || u.raw.x() >= image.cols || u.raw.y() >= image.rows) {
+      continue;
+    }
     if (oldest == nullptr || r.stamp_ns < oldest->stamp_ns) {
       oldest = &r;
       u_oldest = u;
@@ -314,9 +392,10 @@ bool MapUpdater::recent_frames_agree(const Eigen::Vector3d& p_world, const cv::M
     }
   }
   if (oldest == nullptr) return true;
-  const double d =
-      appearance_difference(image, x, oldest->image, u_oldest, z_oldest / depth, params_.window,
-                            params_.search_d, params_.normalise_appearance, params_.tau_c);
+  Pixel at{x, x};
+  if (lens_ && !camera_.undistort(x, &at.ideal)) return true;
+  const double d = window_difference(image, at, oldest->image, u_oldest, z_oldest / depth,
+                                     params_.search_d, params_.tau_c);
   return !std::isfinite(d) || d <= params_.tau_c;
 }
 
@@ -357,7 +436,7 @@ const MapUpdater::Recent* MapUpdater::mid_recent(const cv::Mat& image, int64_t s
   return mid == nullptr || mid_err > 0.25 * best_b ? nullptr : mid;
 }
 
-NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
+NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Pixel& x_prime,
                                    double depth, const cv::Mat& image, const Pose& T_cam_world,
                                    int64_t stamp_ns, double* depth_seen) const {
   if (depth_seen != nullptr) *depth_seen = 0.0;
@@ -368,9 +447,8 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   if (!usable(last, image, stamp_ns)) return NewSurface::kUnknown;
   const Eigen::Vector3d pl = last.T_cam_world * p_world;
   if (pl.z() <= 1e-9) return NewSurface::kUnknown;
-  const double d_t = appearance_difference(last.image, K_.project(pl), image, x_prime,
-                                           pl.z() / depth, params_.window, params_.search_d,
-                                           params_.normalise_appearance, params_.tau_c);
+  const double d_t = window_difference(last.image, pixel(pl), image, x_prime, pl.z() / depth,
+                                       params_.search_d, params_.tau_c);
   if (!std::isfinite(d_t)) return NewSurface::kUnknown;
   if (d_t > params_.tau_c) return NewSurface::kMoving;
   // 2. Static: where is it? Match the current window at x' along x's ray into the recent
@@ -380,19 +458,22 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   double best_b = 0.0;
   const Recent* wide = widest_recent(image, stamp_ns, c_cur, &best_b);
   if (wide == nullptr) return NewSurface::kUnknown;
-  const Eigen::Vector3d ray = T_cam_world.R.transpose() * K_.unproject(x_prime.x(), x_prime.y());
+  const Eigen::Vector3d ray =
+      T_cam_world.R.transpose() * K_.unproject(x_prime.ideal.x(), x_prime.ideal.y());
   bool ok = true;
+  // Distances along the ray in the wide view are measured in raw pixels (what the image
+  // resolves).
   auto pixel_at = [&](double z, double* z_other) {
     const Eigen::Vector3d q = wide->T_cam_world * (c_cur + ray * z);
     *z_other = q.z();
     ok &= q.z() > 1e-9;
-    return ok ? K_.project(q) : Eigen::Vector2d(0, 0);
+    return ok ? pixel(q) : Pixel{};
   };
   const double z_front = depth * (1.0 - params_.temporal_depth_margin);
   double zo = 0;
-  const Eigen::Vector2d px_x = pixel_at(depth, &zo), px_front = pixel_at(z_front, &zo);
+  const Eigen::Vector2d px_x = pixel_at(depth, &zo).raw, px_front = pixel_at(z_front, &zo).raw;
   const double inv_far = 1.0 / (4.0 * depth), inv_near = 1.0 / (0.25 * depth);
-  const double len = (pixel_at(1.0 / inv_far, &zo) - pixel_at(1.0 / inv_near, &zo)).norm();
+  const double len = (pixel_at(1.0 / inv_far, &zo).raw - pixel_at(1.0 / inv_near, &zo).raw).norm();
   if (!ok || len < 3.0) return NewSurface::kUnknown;  // no baseline to speak of
   // A sample every 2 px: eq. (2)'s local search (d = 1) covers the pixel between.
   const int steps = std::clamp(static_cast<int>(std::ceil(len / 2.0)), 2, kMaxDepthSamples);
@@ -401,14 +482,13 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   for (int s = 0; s <= steps; ++s) {
     const double z = 1.0 / (inv_far + (inv_near - inv_far) * s / steps);
     double zw = 0;
-    const Eigen::Vector2d px = pixel_at(z, &zw);
+    const Pixel px = pixel_at(z, &zw);
     if (!ok) return NewSurface::kUnknown;
-    const double d = appearance_difference(image, x_prime, wide->image, px, z / zw, params_.window,
-                                           1, params_.normalise_appearance);
+    const double d = window_difference(image, x_prime, wide->image, px, z / zw, 1);
     if (d < best) {
       best = d;
       best_z = z;
-      best_px = px;
+      best_px = px.raw;
     }
   }
   if (!(best <= params_.tau_c)) return NewSurface::kUnknown;  // no consistent static match
@@ -419,9 +499,8 @@ NewSurface MapUpdater::new_surface(const Eigen::Vector3d& p_world, const Eigen::
   if (mid == nullptr) return NewSurface::kUnknown;
   const Eigen::Vector3d qm = mid->T_cam_world * (c_cur + ray * best_z);
   if (qm.z() <= 1e-9) return NewSurface::kUnknown;
-  const double d_mid = appearance_difference(image, x_prime, mid->image, K_.project(qm),
-                                             best_z / qm.z(), params_.window, params_.search_d,
-                                             params_.normalise_appearance, params_.tau_c);
+  const double d_mid = window_difference(image, x_prime, mid->image, pixel(qm), best_z / qm.z(),
+                                         params_.search_d, params_.tau_c);
   if (!(d_mid <= params_.tau_c)) return NewSurface::kUnknown;
   if (depth_seen != nullptr) *depth_seen = best_z;
   // In front: the match lies clearly (2 px) on the near side of X's depth. At or behind: only
@@ -557,22 +636,23 @@ bool MapUpdater::triggers(const Keyframe& kf) {
 // An untracked point projecting into the view (window inside the image): its camera-frame
 // position and pixel. False for a point tracked in this frame (present) or out of view.
 bool MapUpdater::untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc,
-                                   Eigen::Vector2d& xp) const {
+                                   Pixel& xp) const {
   if (std::binary_search(tracked_ids_sorted_.begin(), tracked_ids_sorted_.end(), p.id)) {
     return false;
   }
   const int h = params_.window / 2;
   pc = c.T_cam_world * p.p_world;
   if (pc.z() <= 1e-9) return false;
-  xp = K_.project(pc);
-  return xp.x() >= h && xp.y() >= h && xp.x() < c.image.cols - h && xp.y() < c.image.rows - h;
+  xp = pixel(pc);
+  const Eigen::Vector2d& r = xp.raw;
+  return r.x() >= h && r.y() >= h && r.x() < c.image.cols - h && r.y() < c.image.rows - h;
 }
 
 // A point of keyframe `kf` (feature i) that is valid, established, untracked and in view
 // (pc, xp from untracked_in_view) becomes a candidate, with eq. (2) against kf where the view
 // test lets Alg. 1 reach it.
 void MapUpdater::add_candidate(Call& c, const Keyframe& kf, int i, const MapPoint& p,
-                               const Eigen::Vector3d& pc, const Eigen::Vector2d& xp) {
+                               const Eigen::Vector3d& pc, const Pixel& xp) {
   const Eigen::Vector3d kf_c = kf.T_cam_world.centre();
   if (p.obs.size() < static_cast<size_t>(std::max(1, params_.min_observations))) {
     ++c.st.points_not_established;
@@ -601,9 +681,8 @@ void MapUpdater::add_candidate(Call& c, const Keyframe& kf, int i, const MapPoin
   // Eq. (2) only when the view test lets Alg. 1 reach it (it is the expensive part).
   if (cand.n_x.dot(cand.n_xp) >= params_.tau_n) {
     const cv::Point2f& kp = kf.features.kps[i].pt;
-    cand.d_c = appearance_difference(kf.image, Eigen::Vector2d(kp.x, kp.y), c.image, xp,
-                                     pk.z() / pc.z(), params_.window, params_.search_d,
-                                     params_.normalise_appearance, params_.tau_c);
+    cand.d_c = window_difference(kf.image, Pixel{un, Eigen::Vector2d(kp.x, kp.y)}, c.image, xp,
+                                 pk.z() / pc.z(), params_.search_d, params_.tau_c);
   }
   candidates_.push_back(cand);
 }
@@ -631,7 +710,7 @@ void MapUpdater::gather_candidates(Call& c, int nsel) {
       if (pid < 0) continue;
       MapPoint* p = c.map.point(pid);
       Eigen::Vector3d pc;
-      Eigen::Vector2d xp;
+      Pixel xp;
       if (p == nullptr || !p->valid || !untracked_in_view(c, *p, pc, xp)) continue;
       add_candidate(c, *kf, i, *p, pc, xp);
     }
@@ -654,7 +733,7 @@ void MapUpdater::gather_unselected(Call& c) {
   for (auto& kv : c.map.points) {
     MapPoint& p = kv.second;
     Eigen::Vector3d pc;
-    Eigen::Vector2d xp;
+    Pixel xp;
     if (!p.valid || std::binary_search(covered_.begin(), covered_.end(), p.id) ||
         !untracked_in_view(c, p, pc, xp)) {
       continue;
@@ -729,7 +808,7 @@ PointDecision MapUpdater::judge(Call& c, const Candidate& cand, const MapPoint& 
   NewSurface seen = NewSurface::kUnknown;
   double depth_seen = 0.0;
   if (std::isfinite(d_c) && d_c > params_.tau_c && params_.occlusion_handling) {
-    nn = gather_neighbours(cand.xp, first);
+    nn = gather_neighbours(cand.xp.ideal, first);
     seen = new_surface(p.p_world, cand.xp, cand.depth, c.image, c.T_cam_world, c.frame.stamp_ns,
                        &depth_seen);
   }
@@ -739,7 +818,7 @@ PointDecision MapUpdater::judge(Call& c, const Candidate& cand, const MapPoint& 
   ++c.st.decisions[static_cast<int>(d)];
   if (check_log_ != nullptr)
     check_log_->push_back({cand.id, d, seen, float(d_c), nn, float(cand.depth), float(depth_seen),
-                           float(cand.xp.x()), float(cand.xp.y())});
+                           float(cand.xp.ideal.x()), float(cand.xp.ideal.y())});
   return d;
 }
 
@@ -769,7 +848,7 @@ void MapUpdater::apply_verdict(Call& c, const Candidate& cand, MapPoint& p, Poin
     const Keyframe* kf = c.map.keyframe(cand.kf);
     const double r = kDuplicatePx * (kf != nullptr ? kf->features.scale[cand.feat] : 1.f);
     if (params_.prune_unmatched && p.normal.dot(cand.n_xp) >= 0.5 && dist >= p.min_dist &&
-        dist <= p.max_dist && tracked_within(cand.xp, r) &&
+        dist <= p.max_dist && tracked_within(cand.xp.ideal, r) &&
         ++p.unmatched > params_.miss_threshold) {
       prune_.push_back(cand.id);
     }

@@ -53,9 +53,15 @@
 // invalid points and points observed by at least 3 other keyframes; the mapper culls covisible
 // keyframes of a new keyframe by it, and this step marks checked keyframes invalid by it.
 //
-// Pixels: the map stores undistorted feature coordinates and raw images; the appearance test
-// uses the raw keypoint in the keyframe and the ideal projection in the current frame, exact
-// for undistorted sources (synthetic, rectified datasets).
+// Pixels: the map stores ideal (undistorted) feature coordinates and raw images. Geometry
+// (Algorithm 1's phi(x'), the first-keyframe test, rays, reprojection gates) runs on ideal
+// pixels; every eq. (2) window is taken in the raw images through the camera model
+// (core/camera.h): at the raw keypoint in a keyframe and at the distorted projection
+// (CameraModel::project) of X in the current or a recent frame, the window's pixel grid
+// mapped by the lens's local linear stretch at both ends (window_difference: warp
+// scale J' J^-1, J = CameraModel::distort_jacobian). "In view" means the raw window lies
+// inside the image. Without distortion raw and ideal pixels are the same and the warp is the
+// depth ratio alone.
 //
 // params() returns the parameters in use: with normalise_appearance, tau_c holds
 // tau_c_relative (the threshold of the normalised score).
@@ -69,9 +75,11 @@
 
 #include <Eigen/StdVector>
 #include <cstdint>
+#include <limits>
 #include <unordered_map>
 #include <vector>
 
+#include "core/camera.h"
 #include "core/change_detection.h"
 #include "core/features.h"
 #include "core/geometry.h"
@@ -152,6 +160,9 @@ class MapUpdater {
   void set_check_log(std::vector<CheckRecord>* log) { check_log_ = log; }
   // `redundant_fraction` is the keyframe-redundancy fraction of Sec. 4's 90% rule
   // (mapper.redundant_fraction, Map::redundancy), shared with the mapper's keyframe culling.
+  MapUpdater(const ChangeDetectionParams& params, const CameraModel& camera,
+             double redundant_fraction = 0.9);
+  // An undistorted camera of these intrinsics (tests).
   MapUpdater(const ChangeDetectionParams& params, const PinholeIntrinsics& K,
              double redundant_fraction = 0.9);
 
@@ -168,8 +179,8 @@ class MapUpdater {
                         std::vector<InvalidationRecord>* records = nullptr);
 
   // dynamic.check_new_points, for the mapper creating a point at p_world from a keyframe whose
-  // feature is at `x` (`depth` in that keyframe, `image` the keyframe's frame, `stamp_ns` its
-  // time): false when the oldest recent checked frame (widest baseline) shows a different
+  // feature is at raw pixel `x` (`depth` in that keyframe, `image` the keyframe's frame, `stamp_ns`
+  // its time): false when the oldest recent checked frame (widest baseline) shows a different
   // window at the point's projection (eq. (2) above tau_c); true when it agrees or cannot
   // decide. Mapper thread.
   bool recent_frames_agree(const Eigen::Vector3d& p_world, const cv::Mat& image,
@@ -187,6 +198,18 @@ class MapUpdater {
     int64_t id = -1;
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
+  // A pixel in both forms: ideal (geometry) and raw (where the image shows it).
+  struct Pixel {
+    Eigen::Vector2d ideal{0, 0}, raw{0, 0};
+  };
+  Pixel pixel(const Eigen::Vector3d& p_cam) const;  // projection of a point in front
+  Pixel pixel_of_ideal(const Eigen::Vector2d& ideal) const;
+  // Eq. (2) (ChangeDetectionParams window, normalisation) between the window at `a` in
+  // image_a and the one at `b` in image_b, `scale` = depth in a / depth in b; raw pixels,
+  // the grid warped by the lens's local stretch at both ends.
+  double window_difference(const cv::Mat& image_a, const Pixel& a, const cv::Mat& image_b,
+                           const Pixel& b, double scale, int search_d,
+                           double accept = -std::numeric_limits<double>::infinity()) const;
   const ColorHistogram& keyframe_histogram(const Keyframe& kf);
   void build_grid(int width, int height);
   int gather_neighbours(const Eigen::Vector2d& x_prime, const Keyframe* first_kf);
@@ -207,7 +230,12 @@ class MapUpdater {
                   InvalidationCause cause, double d_c = 0.0, int kf = -1);
 
   ChangeDetectionParams params_;
+  CameraModel camera_;
+  bool lens_ = false;  // camera_ has distortion
   PinholeIntrinsics K_;
+  // Ideal-pixel box the tracked-point grid covers: the image, or with a lens, the ideal
+  // pixels of the image's border (x0, y0, x1, y1).
+  double ideal_box_[4] = {0, 0, 0, 0};
   double redundant_fraction_ = 0.9;
   ColorHistogram current_hist_;
   std::unordered_map<int, ColorHistogram> kf_hist_;
@@ -225,7 +253,7 @@ class MapUpdater {
     int64_t id = -1;
     int kf = -1, feat = -1;
     Eigen::Vector3d n_x, n_xp;
-    Eigen::Vector2d xp;
+    Pixel xp;  // x'
     double depth = 0.0, d_c = 0.0;
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
@@ -252,9 +280,9 @@ class MapUpdater {
                               double* baseline) const;
   const Recent* mid_recent(const cv::Mat& image, int64_t stamp_ns, const Eigen::Vector3d& c_cur,
                            const Recent* wide, double best_b) const;
-  NewSurface new_surface(const Eigen::Vector3d& p_world, const Eigen::Vector2d& x_prime,
-                         double depth, const cv::Mat& image, const Pose& T_cam_world,
-                         int64_t stamp_ns, double* depth_seen = nullptr) const;
+  NewSurface new_surface(const Eigen::Vector3d& p_world, const Pixel& x_prime, double depth,
+                         const cv::Mat& image, const Pose& T_cam_world, int64_t stamp_ns,
+                         double* depth_seen = nullptr) const;
   void remember(const UpdateFrame& f);
   Recent history_[kHistory];
   int history_head_ = 0;
@@ -287,10 +315,9 @@ class MapUpdater {
   void gather_candidates(Call& c, int nsel);
   void gather_unselected(Call& c);
   bool triggers(const Keyframe& kf);
-  bool untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc,
-                         Eigen::Vector2d& xp) const;
+  bool untracked_in_view(const Call& c, const MapPoint& p, Eigen::Vector3d& pc, Pixel& xp) const;
   void add_candidate(Call& c, const Keyframe& kf, int i, const MapPoint& p,
-                     const Eigen::Vector3d& pc, const Eigen::Vector2d& xp);
+                     const Eigen::Vector3d& pc, const Pixel& xp);
   // 3: per candidate point, judge (Algorithm 1) then apply_verdict (confirmation, V(X) = 0,
   // the counters' "still"/"missed", marking for 6).
   void judge_candidates(Call& c);

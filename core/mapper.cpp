@@ -31,13 +31,15 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
     : params_(params),
       fparams_(features),
       K_{camera.fx, camera.fy, camera.cx, camera.cy},
+      camera_(camera),
       link_(std::move(link)) {
   cand_.resize(2048);
 }
 
 void Mapper::set_change_detection(const ChangeDetectionParams& p) {
-  updater_ =
-      p.needs_updater() ? std::make_unique<MapUpdater>(p, K_, params_.redundant_fraction) : nullptr;
+  updater_ = p.needs_updater()
+                 ? std::make_unique<MapUpdater>(p, camera_, params_.redundant_fraction)
+                 : nullptr;
 }
 
 bool Mapper::step(int timeout_ms) {

@@ -159,6 +159,7 @@ class Mapper {
   MapperParams params_;
   FeatureParams fparams_;
   PinholeIntrinsics K_;
+  CameraModel camera_;  // with its lens: map updating's eq. (2) windows (core/map_updater.h)
   std::shared_ptr<SlamLink> link_;
   Map map_;
   uint32_t epoch_ = 0;

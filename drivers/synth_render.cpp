@@ -13,6 +13,9 @@ namespace rdslam {
 namespace {
 
 constexpr float kEdgeEps = 1e-5f;  // closes rounding gaps between quads sharing an edge
+// Lens bounding boxes: samples per outline edge, and the margin (px) for the curve between.
+constexpr int kLensEdgeSamples = 32;
+constexpr double kLensBoxMarginPx = 2.0;
 
 // log2 to ~1e-4 accuracy without libm: exponent plus a quartic in the mantissa. Only used
 // to pick mip levels, where that is far below visible.
@@ -94,8 +97,6 @@ struct SynthRenderer::QuadSetup {
 
 SynthRenderer::SynthRenderer(const SynthScene& scene) : scene_(scene) {
   const CameraModel& cam = scene.camera;
-  if (cam.has_distortion())
-    throw std::runtime_error("synth: the renderer draws an undistorted pinhole camera; set k* = 0");
   textures_.resize(scene.textures.size());
   for (size_t i = 0; i < scene.textures.size(); ++i) {
     const SynthTextureSpec& spec = scene.textures[i];
@@ -143,6 +144,8 @@ SynthRenderer::SynthRenderer(const SynthScene& scene) : scene_(scene) {
   ray_y_.resize(H);
   for (int x = 0; x < W; ++x) ray_x_[x] = static_cast<float>((x - cam.cx) / cam.fx);
   for (int y = 0; y < H; ++y) ray_y_[y] = static_cast<float>((y - cam.cy) / cam.fy);
+  lens_ = cam.has_distortion();
+  if (lens_) build_lens();
   // Sensor noise: one table of Gaussian samples, read at a per-frame offset (deterministic
   // by seed and frame, and free of per-pixel random number generation).
   if (scene.render.noise_sigma > 0) {
@@ -154,6 +157,88 @@ SynthRenderer::SynthRenderer(const SynthScene& scene) : scene_(scene) {
 }
 
 SynthRenderer::~SynthRenderer() = default;
+
+void SynthRenderer::build_lens() {
+  const CameraModel& cam = scene_.camera;
+  const int W = cam.width, H = cam.height;
+  lens_ray_.resize(static_cast<size_t>(W) * H * 2);
+  lens_lod_.resize(static_cast<size_t>(W) * H);
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (int y = 0; y < H; ++y) {
+    for (int x = 0; x < W; ++x) {
+      Eigen::Vector2d ideal;
+      const double det = cam.undistort(Eigen::Vector2d(x, y), &ideal)
+                             ? cam.distort_jacobian(ideal).determinant()
+                             : 0.0;
+      if (!(det > 0)) {
+        throw std::runtime_error("synth: camera pixel (" + std::to_string(x) + ", " +
+                                 std::to_string(y) +
+                                 ") has no ray in front of the lens (field of view of 180 "
+                                 "degrees or more, or a distortion that folds over)");
+      }
+      const size_t i = static_cast<size_t>(y) * W + x;
+      const double rx = (ideal.x() - cam.cx) / cam.fx, ry = (ideal.y() - cam.cy) / cam.fy;
+      lens_ray_[2 * i] = static_cast<float>(rx);
+      lens_ray_[2 * i + 1] = static_cast<float>(ry);
+      // A raw pixel covers 1/det ideal pixels: half its log2 on the mip level.
+      lens_lod_[i] = static_cast<float>(-0.5 * std::log2(det));
+      x0 = std::min(x0, rx);
+      x1 = std::max(x1, rx);
+      y0 = std::min(y0, ry);
+      y1 = std::max(y1, ry);
+    }
+  }
+  // A little beyond the border pixels' rays: nothing outside can reach a pixel centre.
+  const double mx = 0.02 * (x1 - x0), my = 0.02 * (y1 - y0);
+  lens_box_[0] = x0 - mx;
+  lens_box_[1] = y0 - my;
+  lens_box_[2] = x1 + mx;
+  lens_box_[3] = y1 + my;
+}
+
+bool SynthRenderer::lens_bounds(const Eigen::Vector3d* poly, int np, int* xmin, int* xmax,
+                                int* ymin, int* ymax) const {
+  const CameraModel& cam = scene_.camera;
+  // The outline at unit depth (convex: near-clipped before), clipped to the rays' box
+  // (Sutherland-Hodgman, one box side at a time).
+  Eigen::Vector2d a[16], b[16];
+  int n = np;
+  for (int i = 0; i < np; ++i) a[i] = Eigen::Vector2d(poly[i].x(), poly[i].y()) / poly[i].z();
+  for (int side = 0; side < 4 && n >= 3; ++side) {
+    const int axis = side % 2;
+    const double lim = lens_box_[side];
+    const double sign = side < 2 ? 1.0 : -1.0;  // keep sign * (p - lim) >= 0
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d& p = a[i];
+      const Eigen::Vector2d& q = a[(i + 1) % n];
+      const double dp = sign * (p[axis] - lim), dq = sign * (q[axis] - lim);
+      if (dp >= 0) b[m++] = p;
+      if ((dp >= 0) != (dq >= 0)) b[m++] = p + (q - p) * (dp / (dp - dq));
+    }
+    n = m;
+    for (int i = 0; i < n; ++i) a[i] = b[i];
+  }
+  if (n < 3) return false;
+  double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2d d = a[(i + 1) % n] - a[i];
+    for (int k = 0; k < kLensEdgeSamples; ++k) {
+      const Eigen::Vector2d q = a[i] + d * (static_cast<double>(k) / kLensEdgeSamples);
+      const Eigen::Vector2d px =
+          cam.distort(Eigen::Vector2d(cam.fx * q.x() + cam.cx, cam.fy * q.y() + cam.cy));
+      umin = std::min(umin, px.x());
+      umax = std::max(umax, px.x());
+      vmin = std::min(vmin, px.y());
+      vmax = std::max(vmax, px.y());
+    }
+  }
+  *xmin = std::max(0, static_cast<int>(std::floor(umin - kLensBoxMarginPx)));
+  *xmax = std::min(cam.width - 1, static_cast<int>(std::ceil(umax + kLensBoxMarginPx)));
+  *ymin = std::max(0, static_cast<int>(std::floor(vmin - kLensBoxMarginPx)));
+  *ymax = std::min(cam.height - 1, static_cast<int>(std::ceil(vmax + kLensBoxMarginPx)));
+  return *xmin <= *xmax && *ymin <= *ymax;
+}
 
 void SynthRenderer::setup(double frame, int index) {
   const CameraModel& cam = scene_.camera;
@@ -191,25 +276,37 @@ void SynthRenderer::setup(double frame, int index) {
         if (ain != bin) poly[np++] = a + (b - a) * ((near_m - a.z()) / (b.z() - a.z()));
       }
       if (np < 3) continue;
-      double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
-      for (int i = 0; i < np; ++i) {
-        const double u = cam.fx * poly[i].x() / poly[i].z() + cam.cx;
-        const double v = cam.fy * poly[i].y() / poly[i].z() + cam.cy;
-        umin = std::min(umin, u);
-        umax = std::max(umax, u);
-        vmin = std::min(vmin, v);
-        vmax = std::max(vmax, v);
-      }
       QuadSetup& s = quads_[n_quads_];
-      s.xmin = std::max(0, static_cast<int>(std::floor(std::max(umin, -1e6))));
-      s.xmax = std::min(cam.width - 1, static_cast<int>(std::ceil(std::min(umax, 1e6))));
-      s.ymin = std::max(0, static_cast<int>(std::floor(std::max(vmin, -1e6))));
-      s.ymax = std::min(cam.height - 1, static_cast<int>(std::ceil(std::min(vmax, 1e6))));
+      if (lens_) {
+        if (!lens_bounds(poly, np, &s.xmin, &s.xmax, &s.ymin, &s.ymax)) continue;
+      } else {
+        double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+        for (int i = 0; i < np; ++i) {
+          const double u = cam.fx * poly[i].x() / poly[i].z() + cam.cx;
+          const double v = cam.fy * poly[i].y() / poly[i].z() + cam.cy;
+          umin = std::min(umin, u);
+          umax = std::max(umax, u);
+          vmin = std::min(vmin, v);
+          vmax = std::max(vmax, v);
+        }
+        s.xmin = std::max(0, static_cast<int>(std::floor(std::max(umin, -1e6))));
+        s.xmax = std::min(cam.width - 1, static_cast<int>(std::ceil(std::min(umax, 1e6))));
+        s.ymin = std::max(0, static_cast<int>(std::floor(std::max(vmin, -1e6))));
+        s.ymax = std::min(cam.height - 1, static_cast<int>(std::ceil(std::min(vmax, 1e6))));
+      }
       if (s.xmin > s.xmax || s.ymin > s.ymax) continue;
       // Dual vectors: (X - P0) . as = s and . at = t for X on the plane.
       const Eigen::Vector3d as = V.cross(n) / U.dot(V.cross(n));
       const Eigen::Vector3d at = n.cross(U) / V.dot(n.cross(U));
+      // Plane terms as affine functions of the pixel (pinhole) or of the pixel's ideal ray
+      // (x, y, 1) (lens).
       auto affine = [&](const Eigen::Vector3d& a, float* A, float* B, float* C) {
+        if (lens_) {
+          *A = static_cast<float>(a.x());
+          *B = static_cast<float>(a.y());
+          *C = static_cast<float>(a.z());
+          return;
+        }
         *A = static_cast<float>(a.x()) / fx;
         *B = static_cast<float>(a.y()) / fy;
         *C = static_cast<float>(a.z() - a.x() * cam.cx / cam.fx - a.y() * cam.cy / cam.fy);
@@ -247,6 +344,16 @@ void SynthRenderer::setup(double frame, int index) {
 }
 
 void SynthRenderer::rasterize() {
+  if (lens_) {
+    rasterize_rays<true>();
+  } else {
+    rasterize_rays<false>();
+  }
+}
+
+// kLens: the plane terms are affine in the pixel's ideal ray (lens_ray_), else in the pixel.
+template <bool kLens>
+void SynthRenderer::rasterize_rays() {
   const int W = scene_.camera.width;
   std::fill(zbuf_.begin(), zbuf_.end(), std::numeric_limits<float>::infinity());
   std::fill(qbuf_.begin(), qbuf_.end(), -1);
@@ -254,12 +361,28 @@ void SynthRenderer::rasterize() {
   for (int qi = 0; qi < n_quads_; ++qi) {
     const QuadSetup& s = quads_[qi];
     for (int y = s.ymin; y <= s.ymax; ++y) {
-      const float fy = static_cast<float>(y);
-      const float wy = s.B * fy + s.C, sy = s.Bs * fy + s.Cs, ty = s.Bt * fy + s.Ct;
+      [[maybe_unused]] const float fy_row = static_cast<float>(y);
+      [[maybe_unused]] const float wy_row = s.B * fy_row + s.C, sy_row = s.Bs * fy_row + s.Cs,
+                                   ty_row = s.Bt * fy_row + s.Ct;
       float* zrow = &zbuf_[static_cast<size_t>(y) * W];
       int32_t* qrow = &qbuf_[static_cast<size_t>(y) * W];
+      [[maybe_unused]] const float* ray =
+          kLens ? &lens_ray_[2 * (static_cast<size_t>(y) * W + s.xmin)] : nullptr;
       for (int x = s.xmin; x <= s.xmax; ++x) {
-        const float fx = static_cast<float>(x);
+        float fx, wy, sy, ty;
+        if constexpr (kLens) {
+          fx = ray[0];
+          const float fy = ray[1];
+          ray += 2;
+          wy = s.B * fy + s.C;
+          sy = s.Bs * fy + s.Cs;
+          ty = s.Bt * fy + s.Ct;
+        } else {
+          fx = static_cast<float>(x);
+          wy = wy_row;
+          sy = sy_row;
+          ty = ty_row;
+        }
         const float w = s.A * fx + wy;
         // dn < 0 (visible side), so a point in front of the camera has w < 0.
         if (w >= 0.0f) continue;
@@ -277,6 +400,15 @@ void SynthRenderer::rasterize() {
 }
 
 void SynthRenderer::shade(cv::Mat& image, double frame) {
+  if (lens_) {
+    shade_rays<true>(image, frame);
+  } else {
+    shade_rays<false>(image, frame);
+  }
+}
+
+template <bool kLens>
+void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
   const int W = scene_.camera.width, H = scene_.camera.height;
   const int index = static_cast<int>(std::lround(frame));
   const float exposure = static_cast<float>(
@@ -296,8 +428,8 @@ void SynthRenderer::shade(cv::Mat& image, double frame) {
   const float inv_edge = 1.0f / std::max(1e-6f, cos_in - cos_out);
   for (int y = 0; y < H; ++y) {
     uint8_t* out = image.ptr<uint8_t>(y);
-    const float dy = ray_y_[y];
-    const float fy = static_cast<float>(y);
+    [[maybe_unused]] const float dy_row = ray_y_[y];
+    [[maybe_unused]] const float fy_row = static_cast<float>(y);
     for (int x = 0; x < W; ++x, out += 3) {
       const int32_t qi = qbuf_[static_cast<size_t>(y) * W + x];
       if (qi < 0) {
@@ -305,17 +437,28 @@ void SynthRenderer::shade(cv::Mat& image, double frame) {
         continue;
       }
       const QuadSetup& s = quads_[qi];
-      const float z = zbuf_[static_cast<size_t>(y) * W + x];
-      const float fx = static_cast<float>(x);
+      const size_t pix = static_cast<size_t>(y) * W + x;
+      const float z = zbuf_[pix];
+      // (fx, fy): what the plane terms are affine in; (dx, dy): the ray at unit depth.
+      float fx, fy, dx, dy;
+      if constexpr (kLens) {
+        fx = dx = lens_ray_[2 * pix];
+        fy = dy = lens_ray_[2 * pix + 1];
+      } else {
+        fx = static_cast<float>(x);
+        fy = fy_row;
+        dx = ray_x_[x];
+        dy = dy_row;
+      }
       const float sc = std::min(1.0f, std::max(0.0f, z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0));
       const float tc = std::min(1.0f, std::max(0.0f, z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0));
       const float u = wrap01(s.uv0x + sc * s.uvsx), v = wrap01(s.uv0y + tc * s.uvsy);
       // Mip level: log2(z) - log2(cos(view angle)) / 2 + bias (the half keeps grazing
       // surfaces sharper than isotropic filtering would; GPU-like compromise).
-      const float dx = ray_x_[x];
       const float d2 = dx * dx + dy * dy + 1.0f;
       const float w = s.A * fx + s.B * fy + s.C;
-      const float lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
+      float lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
+      if constexpr (kLens) lod += lens_lod_[pix];
       float bgr[3];
       const Texture& tex = *s.tex;
       const int nlev = static_cast<int>(tex.levels.size());

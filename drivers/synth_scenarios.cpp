@@ -369,6 +369,17 @@ trajectory:
 )",
                                           "name: stationary_camera_people\nframes: 300\n")},
       {"driving", kDriving},
+      // walking_xyz's world, trajectory and seed through real lenses (issue 23): the renderer
+      // draws the lens exactly and SLAM gets it as calibration. radtan: barrel distortion at
+      // f = 525 (corners 90 px further out in ideal pixels than in the image). fisheye:
+      // equidistant, f = 305 px, so the image diagonal spans 150 degrees (r = f theta,
+      // 399.3 px = 305 x 75 degrees), 120 degrees horizontally, 90 vertically.
+      {"walking_xyz_radtan", office(kXyzCamera, kWalkers,
+                                    "name: walking_xyz_radtan\nframes: 300\n"
+                                    "camera: {model: pinhole-radtan, k1: -0.3, k2: 0.1}\n")},
+      {"walking_xyz_fisheye", office(kXyzCamera, kWalkers,
+                                     "name: walking_xyz_fisheye\nframes: 300\n"
+                                     "camera: {model: pinhole-equidistant, fx: 305, fy: 305}\n")},
       {"dominant_object", dominant_object()},
   };
   return t;
@@ -387,7 +398,9 @@ const std::vector<std::string>& synth_scenario_names() {
                                                  "sitting",
                                                  "stationary_camera_people",
                                                  "driving",
-                                                 "dominant_object"};
+                                                 "dominant_object",
+                                                 "walking_xyz_radtan",
+                                                 "walking_xyz_fisheye"};
   return names;
 }
 

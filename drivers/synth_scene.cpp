@@ -592,13 +592,27 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
   if (seed_override >= 0) sc.seed = static_cast<uint64_t>(seed_override);
 
   const YAML::Node cn = root["camera"];
-  rd.known(cn, "camera", {"width", "height", "fx", "fy", "cx", "cy"});
+  rd.known(
+      cn, "camera",
+      {"width", "height", "fx", "fy", "cx", "cy", "model", "k1", "k2", "p1", "p2", "k3", "k4"});
   sc.camera.width = rd.integer(cn, "width", 640, 16, 8192);
   sc.camera.height = rd.integer(cn, "height", 480, 16, 8192);
   sc.camera.fx = rd.num(cn, "fx", 525.0, 1, 1e5);
   sc.camera.fy = rd.num(cn, "fy", 525.0, 1, 1e5);
   sc.camera.cx = rd.num(cn, "cx", (sc.camera.width - 1) / 2.0, -1e4, 1e4);
   sc.camera.cy = rd.num(cn, "cy", (sc.camera.height - 1) / 2.0, -1e4, 1e4);
+  // The lens (core/camera.h): the renderer draws it exactly, SLAM gets it as calibration.
+  sc.camera.model = rd.str(cn, "model", "pinhole-radtan");
+  if (sc.camera.model != "pinhole-radtan" && sc.camera.model != "pinhole-equidistant")
+    fail(origin, "camera.model: '" + sc.camera.model +
+                     "' is not a model; allowed pinhole-radtan, pinhole-equidistant");
+  double* coeffs[] = {&sc.camera.k1, &sc.camera.k2, &sc.camera.p1,
+                      &sc.camera.p2, &sc.camera.k3, &sc.camera.k4};
+  const char* coeff_keys[] = {"k1", "k2", "p1", "p2", "k3", "k4"};
+  for (int i = 0; i < 6; ++i) *coeffs[i] = rd.num(cn, coeff_keys[i], 0.0, -10, 10);
+  if (sc.camera.has_distortion()) {
+    if (const std::string e = sc.camera.validate(); !e.empty()) fail(origin, e);
+  }
 
   const YAML::Node rn = root["render"];
   rd.known(rn, "render",
@@ -902,9 +916,11 @@ SynthPointFate SynthScene::point_fate(const Eigen::Vector3d& p_world, int frame_
   const Eigen::Isometry3d T_cam_world = camera_pose(frame).inverse();
   const Eigen::Vector3d pc = T_cam_world * p_world;
   if (pc.z() > render.near_m) {
-    const double u = camera.fx * pc.x() / pc.z() + camera.cx;
-    const double v = camera.fy * pc.y() / pc.z() + camera.cy;
-    r.in_view = u >= -0.5 && v >= -0.5 && u < camera.width - 0.5 && v < camera.height - 0.5;
+    Eigen::Vector2d uv(camera.fx * pc.x() / pc.z() + camera.cx,
+                       camera.fy * pc.y() / pc.z() + camera.cy);
+    if (camera.has_distortion()) uv = camera.distort(uv);
+    r.in_view = uv.x() >= -0.5 && uv.y() >= -0.5 && uv.x() < camera.width - 0.5 &&
+                uv.y() < camera.height - 0.5;
   }
   const Eigen::Vector3d c = camera_pose(frame).translation();
   const Eigen::Vector3d d = p_world - c;

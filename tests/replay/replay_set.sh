@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The replay set (issue 21's behaviour check): every built-in synthetic scenario
-# (dominant_object at seeds 1-6) and, when ../shared is present, the KITTI 06 excerpt, each
-# through `rdslam replay` (lossless, deterministic, default configuration). Writes
-# OUT/<name>.tum and OUT/<name>.json and prints a table: tracked frames, first tracked frame,
-# ATE % of path (online, final), keyframes and map points at the end. With -c REF, also
+# (dominant_object at seeds 1-6, walking_xyz's lens variants after them) and, when ../shared
+# is present, the KITTI 06 excerpt, each through `rdslam replay` (lossless, deterministic,
+# default configuration). Writes OUT/<name>.tum and OUT/<name>.json and prints a table:
+# tracked frames, first tracked frame, ATE % of path (online, final), keyframes and map
+# points at the end. With -c REF, also
 # compares every trajectory byte for byte with REF/<name>.tum and exits 1 when any differs (a
 # refactoring must not change them, or the change is stated with its measured effect).
 #
-# A measurement, not a CI test (about 6 minutes on 2 cores).
+# A measurement, not a CI test (about 7 minutes on 2 cores).
 #
 # Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-t] OUT_DIR [-- extra args]
 #   -t  only print the table (and compare) of the runs already in OUT_DIR
@@ -23,7 +24,7 @@ while [[ $# -gt 0 ]]; do
     -c) ref="$2"; shift 2 ;;
     -j) jobs="$2"; shift 2 ;;
     -t) table_only=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     --) shift; break ;;
     -*) echo "replay_set: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
@@ -38,6 +39,9 @@ for s in static_xyz static_halfsphere walking_xyz walking_halfsphere rigid_objec
 done
 for seed in 1 2 3 4 5 6; do  # issue 22's family: a dominant moving object, by seed
   sources+=("dominant_object_s$seed=synth:dominant_object?seed=$seed")
+done
+for s in walking_xyz_radtan walking_xyz_fisheye; do  # issue 23: walking_xyz through lenses
+  sources+=("$s=synth:$s")
 done
 kitti="$repo/../shared/data/kitti06_excerpt"
 if [[ -d "$kitti" ]]; then

@@ -134,6 +134,138 @@ TEST(Synth, ProjectedCornerLandsOnRenderedCornerWithinHalfPixel) {
   fs::remove_all(dir);
 }
 
+// Lenses (drivers/synth_render.h): small white squares on black, each centred on the ray of a
+// chosen raw pixel (near the centre, the edges and the corners), 1.5 m away and facing the
+// camera. Each rendered square's centroid must lie where the camera model projects its
+// centre (the chosen pixel; OpenCV's projectPoints agrees, tests/unit/test_camera.cpp).
+void expect_lens_draws_points_at_their_projection(const std::string& camera_yaml) {
+  const fs::path dir = temp_dir("lens");
+  fs::create_directories(dir);
+  cv::imwrite((dir / "white.png").string(), cv::Mat(16, 16, CV_8UC3, cv::Scalar(255, 255, 255)));
+  cv::imwrite((dir / "black.png").string(), cv::Mat(16, 16, CV_8UC3, cv::Scalar(0, 0, 0)));
+  const std::string yaml =
+      "name: lens\nframes: 1\ntexture_dir: " + dir.string() + "\ncamera: " + camera_yaml + R"(
+render: {noise_sigma: 0, ambient: 1.0, diffuse: 0.0}
+room: {size: [6, 5, 2.8], wall_textures: [black], floor_texture: black, ceiling_texture: black}
+trajectory: {type: static, center: [0.1, -1.0, 1.2], target: [0.0, 2.0, 1.0]}
+objects:
+  - {name: dots, shape: plane, size: [0.1, 0, 0.1], texture: white, xyz: [0, 0, 1]}
+)";
+  SynthScene sc = load_synth_scene_yaml(yaml, "lens");
+  const CameraModel& cam = sc.camera;
+  ASSERT_TRUE(cam.has_distortion());
+  const std::vector<Eigen::Vector2d> targets = {{320, 240}, {150, 120}, {500, 380}, {30, 240},
+                                                {610, 240}, {320, 20},  {40, 30},   {600, 450}};
+  SynthObject& dots = sc.objects.back();
+  const Eigen::Isometry3d T_obj_cam = dots.poses[0].inverse() * sc.T_world_cam[0];
+  const int white = dots.quads[0].texture;
+  dots.quads.clear();
+  const double half = 0.025;  // 5 cm squares
+  for (const Eigen::Vector2d& t : targets) {
+    Eigen::Vector2d ideal;
+    ASSERT_TRUE(cam.undistort(t, &ideal));
+    const Eigen::Vector3d c =
+        1.5 * Eigen::Vector3d((ideal.x() - cam.cx) / cam.fx, (ideal.y() - cam.cy) / cam.fy, 1.0)
+                  .normalized();
+    const Eigen::Vector3d n = -c.normalized();
+    const Eigen::Vector3d u = n.cross(Eigen::Vector3d::UnitY()).normalized();
+    const Eigen::Vector3d v = n.cross(u);
+    SynthQuad q;
+    q.p0 = T_obj_cam * (c - half * (u + v));
+    q.u = T_obj_cam.linear() * (2 * half * u);
+    q.v = T_obj_cam.linear() * (2 * half * v);
+    q.two_sided = true;
+    q.texture = white;
+    dots.quads.push_back(q);
+  }
+  SynthSequence seq(sc);
+  SynthFrame f;
+  ASSERT_TRUE(seq.render(0, f));
+  const int id = seq.scene().object("dots")->id;
+  cv::Mat mask = f.ids == id, labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids);
+  ASSERT_EQ(n, static_cast<int>(targets.size()) + 1) << "one blob per square";
+  for (const Eigen::Vector2d& t : targets) {
+    double best = 1e9;
+    int area = 0;
+    for (int k = 1; k < n; ++k) {
+      const double d =
+          (Eigen::Vector2d(centroids.at<double>(k, 0), centroids.at<double>(k, 1)) - t).norm();
+      if (d < best) {
+        best = d;
+        area = stats.at<int>(k, cv::CC_STAT_AREA);
+      }
+    }
+    std::printf("%s: square at (%.0f, %.0f): centroid off by %.3f px (%d px)\n", cam.model.c_str(),
+                t.x(), t.y(), best, area);
+    EXPECT_LT(best, 0.5) << cam.model << " square at " << t.transpose();
+    EXPECT_GT(area, 20);
+    // The image, not only the ids: the square is white where the ids say so.
+    const cv::Vec3b px = f.image.at<cv::Vec3b>(static_cast<int>(t.y()), static_cast<int>(t.x()));
+    EXPECT_GT(px[1], 200);
+  }
+  // Depth is z along the optical axis, also through the lens.
+  const Eigen::Vector2d c0 = targets[0];
+  EXPECT_NEAR(
+      f.depth.at<float>(static_cast<int>(c0.y()), static_cast<int>(c0.x())),
+      1.5 / Eigen::Vector3d((c0.x() - cam.cx) / cam.fx, (c0.y() - cam.cy) / cam.fy, 1).norm(),
+      0.01);
+  fs::remove_all(dir);
+}
+
+TEST(Synth, RadtanLensDrawsPointsAtTheirDistortedProjection) {
+  expect_lens_draws_points_at_their_projection("{model: pinhole-radtan, k1: -0.3, k2: 0.1}");
+}
+
+TEST(Synth, FisheyeLensDrawsPointsAtTheirDistortedProjection) {
+  // Equidistant with polynomial terms, 150 degrees across the diagonal.
+  expect_lens_draws_points_at_their_projection(
+      "{model: pinhole-equidistant, fx: 305, fy: 305, k1: 0.01, k2: -0.005}");
+}
+
+TEST(Synth, LensScenariosAreWalkingXyzThroughALens) {
+  const SynthScene base = load_synth_scene("walking_xyz", 60);
+  for (const char* name : {"walking_xyz_radtan", "walking_xyz_fisheye"}) {
+    const SynthScene sc = load_synth_scene(name, 60);
+    EXPECT_TRUE(sc.camera.has_distortion()) << name;
+    EXPECT_EQ(sc.seed, base.seed) << name;
+    ASSERT_EQ(sc.objects.size(), base.objects.size()) << name;
+    for (int f : {0, 30, 59}) {
+      EXPECT_TRUE(sc.T_world_cam[f].isApprox(base.T_world_cam[f])) << name << " frame " << f;
+      for (const SynthObject& o : base.objects)
+        EXPECT_TRUE(sc.object_pose(o.id, f).isApprox(base.object_pose(o.id, f))) << name;
+    }
+  }
+  // radtan: the issue's k1 = -0.3, k2 = 0.1 at walking_xyz's focal length.
+  const CameraModel rt = load_synth_scene("walking_xyz_radtan", 1).camera;
+  EXPECT_EQ(rt.model, "pinhole-radtan");
+  EXPECT_EQ(rt.k1, -0.3);
+  EXPECT_EQ(rt.k2, 0.1);
+  EXPECT_EQ(rt.fx, base.camera.fx);
+  // fisheye: equidistant, 150 degrees across the image diagonal (the corner's ray), 120
+  // across its width.
+  const CameraModel fe = load_synth_scene("walking_xyz_fisheye", 1).camera;
+  EXPECT_TRUE(fe.is_equidistant());
+  auto angle_deg = [&](double x, double y) {
+    Eigen::Vector2d u;
+    EXPECT_TRUE(fe.undistort(Eigen::Vector2d(x, y), &u));
+    const Eigen::Vector3d ray((u.x() - fe.cx) / fe.fx, (u.y() - fe.cy) / fe.fy, 1.0);
+    return std::acos(ray.normalized().z()) * 180.0 / M_PI;
+  };
+  EXPECT_NEAR(2 * angle_deg(0, 0), 150.0, 1.0);
+  EXPECT_NEAR(2 * angle_deg(0, fe.cy), 120.0, 1.0);
+  // The source hands the lens to SLAM as its calibration.
+  SourceOptions opt;
+  auto src = open_synth_source("synth:walking_xyz_radtan", opt, 2);
+  ASSERT_TRUE(src->camera());
+  EXPECT_EQ(src->camera()->k1, -0.3);
+  EXPECT_EQ(src->camera()->k2, 0.1);
+  // A scenario file's lens is checked like the configuration's.
+  EXPECT_THROW(load_synth_scene_yaml("camera: {model: fisheye}\n", "bad.yaml"), std::runtime_error);
+  EXPECT_THROW(load_synth_scene_yaml("camera: {model: pinhole-equidistant, p1: 0.1}\n", "bad.yaml"),
+               std::runtime_error);
+}
+
 // Back-projects pixels with the rendered depth and the ground-truth pose: the world point
 // must lie on a surface of the object the id image names, and the mask must say whether
 // that object is dynamic at this frame.
