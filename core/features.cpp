@@ -13,6 +13,10 @@ constexpr int kHalfPatch = 15;    // orientation patch radius (ORB)
 constexpr int kEdge = 19;         // border so rotated BRIEF tests stay inside the image
 constexpr int kPatternClip = 13;  // |x|,|y| of test points: 13*sqrt(2) < kEdge
 constexpr int kAngleBins = 32;    // orientation bins of the pre-rotated pattern
+// The per-cell fallback detects a cell inside this margin: FAST reads 3 pixels around a
+// candidate and the suppression compares its score with its 8 neighbours'.
+constexpr int kCellMargin = 4;
+static_assert(kEdge >= kCellMargin, "the margin must stay inside the image");
 
 // Deterministic BRIEF test pattern (Calonder et al.'s G II: isotropic Gaussian, sigma = S/5
 // for a 31-pixel patch), from a fixed 64-bit LCG and Box-Muller so every build and platform
@@ -56,12 +60,24 @@ void FeatureParams::visit(ParamVisitor& v) {
   v.field("scale_factor", scale_factor, 1.05, 2.0, "ORB pyramid scale between levels");
   v.field("fast_threshold", fast_threshold, 1, 100, "FAST corner threshold (grey levels)");
   v.field("grid_cell_px", grid_cell_px, 8, 256, "bucketing cell size in pixels");
+  v.field("min_fast_threshold", min_fast_threshold, 1, 100,
+          "FAST threshold of the per-cell fallback (<= fast_threshold; equal: off)");
+  v.field("fallback_cell_corners", fallback_cell_corners, 0, 10000,
+          "a cell with fewer corners at fast_threshold is re-detected at min_fast_threshold "
+          "(0: off)");
+  v.field("fallback_last", fallback_last,
+          "the fallback's corners only fill what the main threshold's corners leave of a "
+          "level's quota (false: ranked with them cell by cell, as ORB-SLAM)");
   v.field("sift_first_octave", sift_first_octave, -1, 0,
           "SIFT first octave: 0 image resolution (SiftGPU default), -1 upsampled 2x (slow)");
 }
 
 std::string FeatureParams::validate() const {
   if (max_features < 100) return "features.max_features: must be >= 100";
+  if (min_fast_threshold > fast_threshold) {
+    return "features.min_fast_threshold: " + std::to_string(min_fast_threshold) +
+           " is above features.fast_threshold " + std::to_string(fast_threshold);
+  }
   return {};
 }
 
@@ -168,7 +184,11 @@ FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraMode
   resize_.resize(L);
   // A cell holds at most one suppressed FAST maximum per 2x2 pixels: rank histogram bound.
   const int half_cell = params_.grid_cell_px / 2 + 1;
-  rank_hist_.reserve(static_cast<size_t>(half_cell) * half_cell + 2);
+  // With fallback_last the fallback's ranks follow the main ones: twice that.
+  rank_hist_.reserve(2 * static_cast<size_t>(half_cell) * half_cell + 2);
+  // The fallback's largest cell detection (FastDetector reserves one corner per 2x2 pixels).
+  const size_t half_roi = (params_.grid_cell_px + 2 * kCellMargin + 1) / 2;
+  cell_buf_.reserve(half_roi * half_roi);
   blurred_.resize(L);
   rot_off_.resize(L);
   rot_step_.assign(L, -1);
@@ -256,6 +276,7 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
     blur_.apply(img, blurred_[l]);
     // Corners at least kEdge from the border, so rotated BRIEF tests stay inside the image.
     fast_.detect(img, params_.fast_threshold, kEdge, fast_buf_);
+    cell_fallback(img);
     // Strongest first. FAST scores are small integers, so ties are common and decide which
     // cells get a corner at the quota cut below: ties are broken by a hash of the position
     // (a deterministic total order without favouring any image region, as a raster order
@@ -276,6 +297,21 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
       const int c = fast_buf_[i].y / cell * gc + fast_buf_[i].x / cell;
       rank_buf_[i] = cell_count_[c]++;
       max_rank = std::max(max_rank, rank_buf_[i]);
+    }
+    if (params_.fallback_last) {
+      // The fallback's corners only fill what the main threshold's corners leave of the
+      // quota: ranked after every one of them.
+      int main_max = -1;
+      for (size_t i = 0; i < fast_buf_.size(); ++i) {
+        if (fast_buf_[i].score >= params_.fast_threshold)
+          main_max = std::max(main_max, rank_buf_[i]);
+      }
+      for (size_t i = 0; i < fast_buf_.size(); ++i) {
+        if (fast_buf_[i].score < params_.fast_threshold) {
+          rank_buf_[i] += main_max + 1;
+          max_rank = std::max(max_rank, rank_buf_[i]);
+        }
+      }
     }
     const int quota = level_quota_[l];
     // Rank cut-off: all corners of rank < cut, then rank == cut (strongest first) to fill.
@@ -351,6 +387,40 @@ void FeatureExtractor::extract_orb(const cv::Mat& gray, Features& out) {
         out.scale[out.count] = level_scale_[l];
         ++out.count;
         ++taken;
+      }
+    }
+  }
+}
+
+void FeatureExtractor::cell_fallback(const cv::Mat& img) {
+  const int lo = params_.min_fast_threshold, hi = params_.fast_threshold;
+  if (lo >= hi || params_.fallback_cell_corners <= 0) return;
+  const int cell = params_.grid_cell_px;
+  const int gc = (img.cols + cell - 1) / cell, gr = (img.rows + cell - 1) / cell;
+  cell_count_.assign(static_cast<size_t>(gc) * gr, 0);
+  for (const FastCorner& c : fast_buf_) ++cell_count_[c.y / cell * gc + c.x / cell];
+  // Detected inside kCellMargin, a cell gets exactly the corners a whole-level detection at
+  // `lo` would give there.
+  for (int cy = 0; cy < gr; ++cy) {
+    for (int cx = 0; cx < gc; ++cx) {
+      if (cell_count_[static_cast<size_t>(cy) * gc + cx] >= params_.fallback_cell_corners) {
+        continue;
+      }
+      // The cell, clipped to where corners are allowed (kEdge from the border).
+      const int x0 = std::max(cx * cell, kEdge), x1 = std::min((cx + 1) * cell, img.cols - kEdge);
+      const int y0 = std::max(cy * cell, kEdge), y1 = std::min((cy + 1) * cell, img.rows - kEdge);
+      if (x0 >= x1 || y0 >= y1) continue;
+      const cv::Rect roi(x0 - kCellMargin, y0 - kCellMargin, x1 - x0 + 2 * kCellMargin,
+                         y1 - y0 + 2 * kCellMargin);
+      fast_.detect(img(roi), lo, kCellMargin, cell_buf_);
+      for (FastCorner c : cell_buf_) {
+        // Corners at or above `hi` are already in fast_buf_ (same position and score).
+        if (c.score >= hi) continue;
+        c.x = static_cast<int16_t>(c.x + roi.x);
+        c.y = static_cast<int16_t>(c.y + roi.y);
+        // fast_buf_'s capacity bounds any whole-level detection (one corner per 2x2
+        // pixels), which these corners and the main ones together are part of.
+        if (fast_buf_.size() < fast_buf_.capacity()) fast_buf_.push_back(c);
       }
     }
   }

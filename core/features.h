@@ -4,7 +4,13 @@
 //    orientation and 256-bit steered BRIEF descriptors (rBRIEF, Rublee et al. 2011) from our
 //    own fixed test pattern. Pyramid, blur and FAST are our own (core/image_ops.h): all
 //    buffers are preallocated and extract() does not allocate after the first frame of a
-//    given size.
+//    given size. Per-cell threshold fallback (after ORB-SLAM's extractor): a grid cell with
+//    fewer than `fallback_cell_corners` corners at `fast_threshold` is detected again at
+//    `min_fast_threshold`, so dim or low-contrast regions still get corners while
+//    well-textured cells keep the stricter threshold. The result equals a detection at
+//    min_fast_threshold restricted to those cells (a FAST score does not depend on the
+//    threshold; the re-detection covers the non-maximum suppression's neighbours). By default
+//    (`fallback_last`) those corners only fill what the main threshold leaves of the budget.
 //  - "sift" (the paper, Sec. 3): SIFT keypoints and 128-float descriptors (OpenCV SIFT), to be
 //    matched with a FLANN KD-tree and the ratio test c < 0.6. Allocates per frame (paper mode).
 //    With sift_first_octave = 0 (default) OpenCV's SIFT runs on the image downscaled 2x
@@ -38,7 +44,15 @@ struct FeatureParams {
   int levels = 4;            // ORB pyramid levels
   double scale_factor = 1.2;
   int fast_threshold = 12;  // FAST threshold; cells rank corners by score
-  int grid_cell_px = 40;    // bucketing cell size (level-0 pixels)
+  int grid_cell_px = 40;    // bucketing cell size (pixels of each pyramid level)
+  // Per-cell fallback: a cell with fewer than fallback_cell_corners corners at fast_threshold
+  // is re-detected at min_fast_threshold (<= fast_threshold; equal, or 0 corners: off).
+  int min_fast_threshold = 7;
+  int fallback_cell_corners = 1;
+  // true: the fallback's corners only fill what the main threshold's corners leave of a
+  // level's quota (a frame whose quota the main threshold fills is unchanged); false: they
+  // are ranked cell by cell with them (ORB-SLAM's behaviour; docs/slam.md compares both).
+  bool fallback_last = true;
   // First SIFT octave: 0 = DoG scale space starts at the image resolution (SiftGPU's default,
   // Wu 2007, the SIFT of RDSLAM's implementation); -1 = Lowe's 2x upsampled image (OpenCV's
   // fixed choice; 4x the pixels, about 4x slower, adds only the finest-scale keypoints).
@@ -93,6 +107,9 @@ class FeatureExtractor {
   void extract_sift(const cv::Mat& gray, Features& out);
   void undistort(Features& out) const;
   void prepare(Features& out, int w, int h) const;
+  // Appends to fast_buf_ the corners of `img` with min_fast_threshold <= score <
+  // fast_threshold in the cells that have fewer than fallback_cell_corners corners.
+  void cell_fallback(const cv::Mat& img);
 
   FeatureParams params_;
   CameraModel camera_;
@@ -103,6 +120,7 @@ class FeatureExtractor {
   GaussianBlur7 blur_{2.0};
   FastDetector fast_;
   std::vector<FastCorner> fast_buf_;
+  std::vector<FastCorner> cell_buf_;  // one cell's re-detection at min_fast_threshold
   std::vector<int> rank_buf_, cell_count_, rank_hist_;
   std::vector<int> umax_;
   std::vector<int> pattern_;               // 256 pairs: x0 y0 x1 y1

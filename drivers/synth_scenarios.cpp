@@ -1,6 +1,8 @@
 // Built-in scenarios of the synthetic camera (issue 5), written in the same YAML a user
 // would put in a file (docs/synthetic.md documents the keys), so a built-in scenario and a
 // file scenario go through one loader.
+#include <cmath>
+#include <cstdio>
 #include <map>
 #include <string>
 #include <vector>
@@ -241,6 +243,34 @@ std::string office(const char* camera, const char* extra_objects, const std::str
   return head + kOffice + camera + "objects:" + kFurniture + desk_boxes + extra_objects;
 }
 
+// Dim and changing light (issue 23): static_xyz's office and hand-held camera (without the
+// pause) while the light fades, as in a room where the lamps are dimmed with the camera's
+// exposure and gain fixed. Exposure 1 for 2 s (the map is made in full light), a raised-cosine
+// fall to 0.15 over 3 s (frames 60-150), 2 s at 0.15, the same rise back over 3 s (210-300)
+// and 2 s at 1. The renderer applies the gain after shading and rounds to 8 bits before
+// adding the sensor noise (sigma 2 grey levels), so the dim frames have 15% of the contrast
+// under the same noise. Keys every 5 frames (the loader interpolates linearly between them).
+std::string dim() {
+  constexpr double kLow = 0.15;
+  std::string keys = "exposure: [[0, 1.0]";
+  auto key = [&keys](int frame, double gain) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, ", [%d, %.4f]", frame, gain);
+    keys += buf;
+  };
+  for (int f = 60; f <= 150; f += 5) {
+    const double w = 0.5 - 0.5 * std::cos(M_PI * (f - 60) / 90.0);  // 0 -> 1
+    key(f, 1.0 + (kLow - 1.0) * w);
+  }
+  for (int f = 210; f <= 300; f += 5) {
+    const double w = 0.5 - 0.5 * std::cos(M_PI * (f - 210) / 90.0);
+    key(f, kLow + (1.0 - kLow) * w);
+  }
+  key(359, 1.0);
+  keys += "]\n";
+  return office(kXyzCamera, "", "name: dim\nframes: 360\n" + keys);
+}
+
 const std::map<std::string, std::string>& table() {
   static const std::map<std::string, std::string> t = {
       {"static_xyz", office(kXyzCameraWithPause, "", "name: static_xyz\nframes: 300\nseed: 1\n")},
@@ -381,6 +411,7 @@ trajectory:
                                      "name: walking_xyz_fisheye\nframes: 300\n"
                                      "camera: {model: pinhole-equidistant, fx: 305, fy: 305}\n")},
       {"dominant_object", dominant_object()},
+      {"dim", dim()},
   };
   return t;
 }
@@ -400,7 +431,8 @@ const std::vector<std::string>& synth_scenario_names() {
                                                  "driving",
                                                  "dominant_object",
                                                  "walking_xyz_radtan",
-                                                 "walking_xyz_fisheye"};
+                                                 "walking_xyz_fisheye",
+                                                 "dim"};
   return names;
 }
 

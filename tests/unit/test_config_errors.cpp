@@ -186,6 +186,13 @@ TEST_F(ConfigErrors, SetCrossFieldModelMismatch) {
             "pinhole-radtan");
 }
 
+TEST_F(ConfigErrors, SetCrossFieldFallbackThresholdAboveTheMainOne) {
+  EXPECT_EQ(error_of("", {"features.min_fast_threshold=20"}),
+            "config: features.min_fast_threshold: 20 is above features.fast_threshold 12");
+  EXPECT_EQ(error_of("", {"features.min_fast_threshold=20", "features.fast_threshold=20"}),
+            "(loaded)");
+}
+
 TEST_F(ConfigErrors, SetOverridesTheFileAndIsValidatedLikeIt) {
   // The file is fine; the override breaks it, and the message is the same as from a file.
   EXPECT_EQ(error_of(file("camera:\n  fx: 500\n"), {"camera.fx=0"}),

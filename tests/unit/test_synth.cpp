@@ -2,6 +2,8 @@
 // YAML loading, determinism, the TUM writer and the synth: source.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -705,6 +707,59 @@ TEST(Synth, MotionBlurAndExposureChangeTheImageNotTheGeometry) {
   bool exposure_event = false;
   for (const auto& e : dim.events()) exposure_event |= e.kind == "exposure" && e.first_frame == 1;
   EXPECT_TRUE(exposure_event);
+}
+
+TEST(Synth, DimFallsToFifteenPercentExposureAndBack) {
+  SynthScene sc = load_synth_scene("dim");
+  ASSERT_EQ(sc.frame_count, 360);
+  // Full light for the first map, a smooth fall to 0.15 (frames 60-150), 0.15 until 210, the
+  // same rise back by 300.
+  EXPECT_DOUBLE_EQ(sc.exposure[0], 1.0);
+  EXPECT_DOUBLE_EQ(sc.exposure[59], 1.0);
+  EXPECT_DOUBLE_EQ(sc.exposure[359], 1.0);
+  const auto lowest = std::min_element(sc.exposure.begin(), sc.exposure.end());
+  EXPECT_NEAR(*lowest, 0.15, 1e-9);
+  for (int f = 150; f <= 210; ++f) EXPECT_NEAR(sc.exposure[f], 0.15, 1e-9) << f;
+  double steepest = 0;
+  for (int f = 1; f < sc.frame_count; ++f)
+    steepest = std::max(steepest, std::abs(sc.exposure[f] - sc.exposure[f - 1]));
+  EXPECT_LT(steepest, 0.02) << "smooth, not a step";
+  EXPECT_GT(steepest, 0.01);
+  // The image at the dimmest frame against the same view in full light, and against the
+  // first frame: mean grey level about 15% (8-bit rounding and the sensor noise clipped at 0
+  // add a little in the dark; saturated pixels in full light add a little too).
+  SynthScene bright_sc = sc;
+  std::fill(bright_sc.exposure.begin(), bright_sc.exposure.end(), 1.0);
+  SynthSequence dim(std::move(sc)), bright(std::move(bright_sc));
+  SynthFrame f0, dark, lit;
+  dim.render(0, f0);
+  dim.render(180, dark);
+  bright.render(180, lit);
+  cv::Mat g0, gd, gl;
+  cv::cvtColor(f0.image, g0, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(dark.image, gd, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(lit.image, gl, cv::COLOR_BGR2GRAY);
+  const double same_view = cv::mean(gd)[0] / cv::mean(gl)[0];
+  const double vs_first = cv::mean(gd)[0] / cv::mean(g0)[0];
+  std::printf("dim: mean grey at frame 180 / same view lit %.4f, / frame 0 %.4f\n", same_view,
+              vs_first);
+  EXPECT_NEAR(same_view, 0.15, 0.01);
+  EXPECT_NEAR(vs_first, 0.15, 0.02);
+  // The contrast falls with the light, the sensor noise does not: at the dimmest frame the
+  // rendered image differs from a noiseless render by the full sigma (2 grey levels; a
+  // little less where clipping at 0 cuts it), not by 15% of it.
+  SynthScene quiet_sc = load_synth_scene("dim");
+  quiet_sc.render.noise_sigma = 0;
+  SynthSequence quiet(std::move(quiet_sc));
+  SynthFrame clean;
+  quiet.render(180, clean);
+  cv::Mat diff;
+  cv::subtract(dark.image, clean.image, diff, cv::noArray(), CV_32F);
+  cv::Scalar m, noise;
+  cv::meanStdDev(diff.reshape(1), m, noise);
+  std::printf("dim: noise at frame 180 sigma %.3f grey levels\n", noise[0]);
+  EXPECT_GT(noise[0], 1.5);
+  EXPECT_LT(noise[0], 2.3);
 }
 
 TEST(Synth, YamlErrorsNameTheKey) {

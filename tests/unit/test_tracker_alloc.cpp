@@ -52,9 +52,11 @@ TEST(TrackerAlloc, CountingAllocatorSeesAllocations) {
 }
 
 #if RDSLAM_ALLOC_COUNTING
-void expect_tracker_does_not_allocate_after_warm_up(const char* scenario) {
+// Runs `scenario`'s first `frames` frames through the tracker and mapper and asserts that
+// the tracker's track() calls after the warm-up do not allocate.
+void expect_no_allocation_after_warm_up(const char* scenario, int frames) {
   SourceOptions so;
-  std::unique_ptr<FrameSource> src = open_synth_source(scenario, so, kFrames);
+  std::unique_ptr<FrameSource> src = open_synth_source(scenario, so, frames);
   const CameraModel cam = *src->camera();
   SlamParams params;  // the defaults: ORB features, PARSAC per frame
   SlamStages stages = make_slam_stages(params, cam);
@@ -64,7 +66,7 @@ void expect_tracker_does_not_allocate_after_warm_up(const char* scenario) {
   uint64_t window_mallocs = 0, window_news = 0;
   int measured = 0, tracked = 0, keyframe_frames = 0, last_keyframes = 0;
   int max_per_frame = 0;
-  for (int i = 0; i < kFrames; ++i) {
+  for (int i = 0; i < frames; ++i) {
     if (src->read(frame, 1000) != SourceStatus::kOk) break;
     const bool in_window = i >= kWarmup;
     const uint64_t m0 = g_malloc_calls.load(), n0 = g_new_calls.load();
@@ -83,10 +85,10 @@ void expect_tracker_does_not_allocate_after_warm_up(const char* scenario) {
     keyframe_frames += r.keyframes != last_keyframes;
     last_keyframes = r.keyframes;
   }
-  ASSERT_EQ(measured, kFrames - kWarmup);
+  ASSERT_EQ(measured, frames - kWarmup) << scenario;
   // The window must exercise the real path: tracking, and keyframes handed to the mapper.
-  EXPECT_EQ(tracked, measured) << "every measured frame tracked";
-  EXPECT_GE(keyframe_frames, 1) << "keyframes were created inside the window";
+  EXPECT_EQ(tracked, measured) << scenario << ": every measured frame tracked";
+  EXPECT_GE(keyframe_frames, 1) << scenario << ": keyframes were created inside the window";
   std::printf(
       "[ measured ] %s: %d tracked frames (%d with a new keyframe): %llu malloc-family "
       "calls, %llu operator new, at most %d in one frame\n",
@@ -101,7 +103,7 @@ TEST(TrackerAlloc, SlamTrackerDoesNotAllocateAfterWarmUp) {
 #if !RDSLAM_ALLOC_COUNTING
   GTEST_SKIP() << "allocation counting is disabled under sanitizers";
 #else
-  expect_tracker_does_not_allocate_after_warm_up("static_xyz");
+  expect_no_allocation_after_warm_up("static_xyz", kFrames);
 #endif
 }
 
@@ -109,7 +111,17 @@ TEST(TrackerAlloc, SlamTrackerThroughALensDoesNotAllocateAfterWarmUp) {
 #if !RDSLAM_ALLOC_COUNTING
   GTEST_SKIP() << "allocation counting is disabled under sanitizers";
 #else
-  expect_tracker_does_not_allocate_after_warm_up("walking_xyz_fisheye");
+  expect_no_allocation_after_warm_up("walking_xyz_fisheye", kFrames);
+#endif
+}
+
+// synth:dim while the light fades to 15% (frames 60-150) and stays there (150-180): the
+// per-cell FAST fallback re-detects most grid cells, with its own buffers.
+TEST(TrackerAlloc, DimFramesWithTheCellFallbackDoNotAllocate) {
+#if !RDSLAM_ALLOC_COUNTING
+  GTEST_SKIP() << "allocation counting is disabled under sanitizers";
+#else
+  expect_no_allocation_after_warm_up("dim", 180);
 #endif
 }
 
