@@ -40,6 +40,9 @@ void TrackerParams::visit(ParamVisitor& v) {
           "max_keyframe_interval while the map is young");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
           "lost this long with <= 2 keyframes: re-initialize");
+  v.field("prediction_max_scale", prediction_max_scale, 1.0, 100.0,
+          "the motion prediction spans at most this many (at least 1/this) of the last motion's "
+          "stamp intervals (frames dropped between tracked frames)");
   v.field("robust_per_frame", robust_per_frame,
           "robust pose (parsac.method) on every frame before the eq. (1) refinement");
   v.field("submotion_chi2", submotion_chi2, 0.0, 1000.0,
@@ -51,6 +54,29 @@ void TrackerParams::visit(ParamVisitor& v) {
   PrefixVisitor init_v(v, "init_");
   init.visit(init_v);
 }
+
+namespace {
+
+// Scale of the last motion for a frame `dt_ns` after the last tracked frame, when that motion
+// spanned `motion_dt_ns`: their ratio, clamped to [1 / max_scale, max_scale]. 1 when either
+// interval is not positive (stamps not increasing: one motion per frame, as without stamps)
+// and when the ratio is within 1% of 1 (stamp rounding and jitter of a steady frame rate, so
+// a sequence without drops predicts exactly as one motion per frame).
+double motion_scale(int64_t dt_ns, int64_t motion_dt_ns, double max_scale) {
+  if (dt_ns <= 0 || motion_dt_ns <= 0) return 1.0;
+  const double r = static_cast<double>(dt_ns) / static_cast<double>(motion_dt_ns);
+  if (std::abs(r - 1.0) < 0.01) return 1.0;
+  return std::clamp(r, 1.0 / max_scale, max_scale);
+}
+
+// `motion` continued for `s` times its duration: rotation angle and translation scaled by s
+// (as the initial velocity is spread over the initialization's frames).
+Pose scale_motion(const Pose& motion, double s) {
+  const Eigen::AngleAxisd aa(motion.R);
+  return Pose{Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix(), motion.t * s};
+}
+
+}  // namespace
 
 void Tracker::FrameState::reset_matches(int n) {
   std::fill(pid.begin(), pid.begin() + n, int64_t{-1});
@@ -433,6 +459,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   const Eigen::AngleAxisd aa(init.T1.R);
   velocity_.R = Eigen::AngleAxisd(aa.angle() / age, aa.axis()).toRotationMatrix();
   velocity_.t = init.T1.t / age;
+  velocity_dt_ns_ = (frame.stamp_ns - init.reference_stamp_ns) / age;
   state_ = TrackingState::kTracking;
   frames_since_kf_ = 0;
   stats_.inliers = static_cast<int>(init.points.size());
@@ -627,6 +654,7 @@ void Tracker::extract(const Frame& frame) {
     img = &gray_;
   }
   extractor_.extract(*img, cur_.f);
+  cur_.stamp_ns = frame.stamp_ns;
   cur_.reset_matches(cur_.f.count);
   refresh_snapshot();
   stats_.matches_motion = stats_.matches_local = 0;
@@ -649,13 +677,23 @@ bool Tracker::track_with_map() {
   // TRACKING / RELOCALIZED: a cascade of searches around the constant-velocity prediction
   // (motion model, widened motion search, local-map projection), each tried when the previous
   // one left too few inliers; then the pose is extended with the local map (Sec. 3).
-  const Pose Tpred = velocity_ * last_.T;
+  const Pose Tpred = predict_pose();
+  stats_.predicted = Tpred;
   Pose T = Tpred;
   int inl = track_with_motion_model(Tpred, T);
   if (inl < params_.search_min_inliers && have_last_) inl = widened_motion_search(Tpred, T);
   if (inl < params_.search_min_inliers && snap_) inl = local_map_fallback(Tpred, T);
   if (inl >= params_.extend_min_inliers) inl = extend_with_local_map(T);
   return update_state(T, inl);
+}
+
+Pose Tracker::predict_pose() const {
+  // Constant velocity in time: the last motion over this frame's interval since the last
+  // tracked frame (several frame periods when frames were dropped in between).
+  const double s =
+      motion_scale(cur_.stamp_ns - last_.stamp_ns, velocity_dt_ns_, params_.prediction_max_scale);
+  if (s == 1.0) return velocity_ * last_.T;
+  return scale_motion(velocity_, s) * last_.T;
 }
 
 int Tracker::track_with_motion_model(const Pose& Tpred, Pose& T) {
@@ -717,6 +755,7 @@ bool Tracker::update_state(const Pose& T, int inl) {
   }
   cur_.T = T;
   velocity_ = T * last_.T.inverse();
+  velocity_dt_ns_ = cur_.stamp_ns - last_.stamp_ns;
   state_ = TrackingState::kTracking;
   lost_frames_ = 0;
   return true;
@@ -728,6 +767,7 @@ bool Tracker::handle_lost() {
   if (relocalize()) {
     state_ = TrackingState::kRelocalized;
     velocity_ = Pose();
+    velocity_dt_ns_ = 0;
     lost_frames_ = 0;
     return true;
   }

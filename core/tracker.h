@@ -13,7 +13,8 @@
 // track() runs these steps (private members, in this order), then fills the TrackResult once:
 //   extract                  features of the frame; the newest map snapshot
 //   track_initializing       INITIALIZING: two-view initialization (core/initializer.h)
-//   TRACKING / RELOCALIZED, a cascade around the constant-velocity prediction, each search
+//   TRACKING / RELOCALIZED, a cascade around the constant-velocity prediction (predict_pose:
+//   the last motion, scaled by the frames' stamp intervals when frames were dropped), each search
 //   tried while the previous one left fewer than `search_min_inliers` inliers (a search
 //   estimates a pose only from at least `search_min_matches` matches):
 //     track_with_motion_model  previous frame's points in `motion_search_px`; robust pose
@@ -84,6 +85,12 @@ struct TrackerParams {
   int young_map_keyframes = 12;         // below this many keyframes the map is young
   int young_map_keyframe_interval = 5;  // max_keyframe_interval while the map is young
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
+  // Time-aware constant velocity: the last motion spans the stamp interval between the last
+  // two tracked frames; the prediction for a frame dt after the last tracked one applies it
+  // scaled by dt / that interval (so a live pipeline that dropped frames predicts the whole
+  // gap), clamped to [1 / prediction_max_scale, prediction_max_scale]. Stamps that do not
+  // increase fall back to one motion per frame.
+  double prediction_max_scale = 4.0;
   // Lossless replay only: after proposing a keyframe, wait for the mapper to finish it, so a
   // replay faster than real time maps like an offline run. Off for live cameras: then the
   // mapper never blocks the tracker for more than the index pointer swap.
@@ -116,6 +123,7 @@ struct TrackerStats {
   int matches_motion = 0, matches_local = 0, inliers = 0;
   int candidates_sent = 0;
   InitStatus last_init = InitStatus::kNoReference;
+  Pose predicted;  // T_cam_world the motion model predicted for the last frame tracked with a map
 };
 
 class Tracker {
@@ -142,6 +150,8 @@ class Tracker {
   void extract(const Frame& frame);
   bool track_initializing(const Frame& frame);
   bool track_with_map();
+  // The constant-velocity prediction of this frame's pose (TrackerParams::prediction_max_scale).
+  Pose predict_pose() const;
   int track_with_motion_model(const Pose& Tpred, Pose& T);
   int widened_motion_search(const Pose& Tpred, Pose& T);
   int local_map_fallback(const Pose& Tpred, Pose& T);
@@ -205,11 +215,13 @@ class Tracker {
     std::vector<int> row;
     std::vector<float> best_dist;
     Pose T;
+    int64_t stamp_ns = 0;  // Frame::stamp_ns
     void reset_matches(int n);
   };
   FrameState cur_, last_;
   bool have_last_ = false;
-  Pose velocity_;
+  Pose velocity_;               // motion between the last two tracked frames (T_cur * T_prev^-1)
+  int64_t velocity_dt_ns_ = 0;  // the stamp interval velocity_ spans; <= 0: unknown (per frame)
   int frames_since_kf_ = 0;
   int frames_since_obs_ = 0;
   int lost_frames_ = 0;

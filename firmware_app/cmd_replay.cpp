@@ -6,7 +6,10 @@
 // debug video / debug images of what the system decided (firmware_app/debug_video.h).
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 #include "core/log.h"
 #include "core/slam.h"
@@ -31,7 +34,8 @@ int cmd_replay(int argc, char** argv) {
   bool realtime = false;
   ArgParser p(
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
-      "[--plot OUT.png] [--timings OUT.csv] [--realtime] [--debug-video OUT.mp4] "
+      "[--plot OUT.png] [--timings OUT.csv] [--realtime [--speed K] [--preload]] "
+      "[--debug-video OUT.mp4] "
       "[--debug-images DIR] [--debug-every N] [--loop N] [--every N] [--map-log OUT.csv]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
@@ -46,7 +50,19 @@ int cmd_replay(int argc, char** argv) {
   p.option("--plot", &plot_path, "OUT.png", "write a top-view plot against ground truth");
   p.option("--timings", &timings_path, "OUT.csv",
            "write per-frame timings (seq, index, state, queue+track ms, latency ms, track ms)");
-  p.flag("--realtime", &realtime, "pace the source at its recorded rate (drops possible)");
+  p.flag("--realtime", &realtime,
+         "pace the source at its recorded rate and run the live pipeline: the tracker never "
+         "waits for the mapper and takes the newest frame (drops possible)");
+  // NaN: not given (the parser accepts finite numbers only).
+  double speed = std::numeric_limits<double>::quiet_NaN();
+  p.option("--speed", &speed, "K",
+           "with --realtime: deliver frames at K times the recorded rate (K > 0, default 1; "
+           "stamps unchanged), e.g. 3 to approximate a 3x slower board at camera rate");
+  bool preload = false;
+  p.flag("--preload", &preload,
+         "with --realtime: read the whole source into memory before the replay starts (at most "
+         "2 GiB, as --loop), so the capture thread only copies frames, as from a camera; "
+         "without it, it decodes or renders each frame at the paced rate");
   double loops = 1;
   double every = 1;
   std::string map_log_path;
@@ -100,6 +116,12 @@ int cmd_replay(int argc, char** argv) {
     check_debug_output_paths(dopt);  // before the (possibly slow) source opens
   }
 
+  if (!std::isnan(speed) && !realtime) {
+    throw UsageError("--speed: needs --realtime (a lossless replay runs as fast as it can)");
+  }
+  if (preload && !realtime) throw UsageError("--preload: needs --realtime");
+  if (std::isnan(speed)) speed = 1.0;
+  if (!(speed > 0.0) || speed > 1000.0) throw UsageError("--speed: must be in (0, 1000]");
   if (loops < 1 || loops != std::floor(loops) || loops > 1e6) {
     throw UsageError("--loop: must be an integer >= 1");
   }
@@ -112,14 +134,21 @@ int cmd_replay(int argc, char** argv) {
     map_log.reset(std::fopen(map_log_path.c_str(), "w"));
     if (!map_log) throw UsageError("--map-log: cannot write " + map_log_path);
   }
-  const SourceOptions so = make_source_options(cfg, overrides, realtime ? 1.0 : 0.0);
+  const SourceOptions so = make_source_options(cfg, overrides, realtime ? speed : 0.0);
   std::unique_ptr<FrameSource> source;
-  if (loops > 1) {
+  if (loops > 1 || preload) {
     SourceOptions unpaced = so;
     unpaced.speed = 0.0;  // the cache is filled as fast as the source reads
-    source = make_looped_source(
-        make_decimated_source(open_source(uri, unpaced), static_cast<int>(every)),
-        static_cast<int>(loops), so.speed);
+    try {
+      source = make_looped_source(
+          make_decimated_source(open_source(uri, unpaced), static_cast<int>(every)),
+          static_cast<int>(loops), so.speed);
+    } catch (const std::runtime_error& e) {
+      if (loops > 1) throw;
+      std::string m = e.what();  // the cache's messages name --loop
+      if (m.rfind("--loop: ", 0) == 0) m = m.substr(8);
+      throw std::runtime_error("--preload: " + m);
+    }
   } else {
     source = make_decimated_source(open_source(uri, so), static_cast<int>(every));
   }
@@ -253,6 +282,10 @@ int cmd_replay(int argc, char** argv) {
     w.value("rmse_pct_path", final_report.ate_rmse_pct_path);
     w.end_object();
     w.value("source", uri);
+    w.value("realtime", realtime);
+    // Pacing: K x the recorded rate (--realtime --speed K); 0 = lossless (as fast as possible).
+    w.value("speed", realtime ? speed : 0.0);
+    w.value("wall_s", rr.wall_s);  // the pipeline's run, start to join
     w.value("feature_mode", cfg.slam.features.mode);
     w.value("map_points", map_points);
     w.value("keyframes", keyframes);

@@ -6,6 +6,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -13,6 +14,8 @@
 #include <ctime>
 #include <stdexcept>
 #include <string>
+
+#include <opencv2/core/utility.hpp>
 
 #include "core/log.h"
 
@@ -72,6 +75,23 @@ std::string cores_text(const std::vector<int>& cores) {
 
 }  // namespace
 
+int opencv_threads_for(const ThreadParams& threads) {
+  if (threads.opencv_threads >= 0) return threads.opencv_threads;
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof(allowed), &allowed) != 0) return 1;
+  cpu_set_t used;
+  CPU_ZERO(&used);
+  for (const ThreadSpec* t :
+       {&threads.capture, &threads.tracker, &threads.mapper, &threads.publisher}) {
+    if (t->cores.empty()) return std::max(1, CPU_COUNT(&allowed));  // may run anywhere
+    for (int c : t->cores) {
+      if (c >= 0 && c < CPU_SETSIZE && CPU_ISSET(c, &allowed)) CPU_SET(c, &used);
+    }
+  }
+  return std::max(1, CPU_COUNT(&used));
+}
+
 Pipeline::Pipeline(FrameSource& source, TrackerStage& tracker, MapperStage& mapper,
                    const PipelineOptions& options)
     : source_(source),
@@ -103,6 +123,9 @@ void Pipeline::add_sink(PipelineSink* sink) {
 void Pipeline::start() {
   if (started_) throw std::logic_error("Pipeline::start called twice");
   started_ = true;
+  // Process-wide; before the threads start, so the pool never exceeds the configured cores.
+  opencv_threads_ = opencv_threads_for(options_.threads);
+  cv::setNumThreads(opencv_threads_);
   const int64_t now = mono_now_ns();
   start_ns_ = now;
   prev_status_ns_ = now;
@@ -248,6 +271,8 @@ void Pipeline::log_thread_table() const {
                   pool_.frame(0).image.cols, pool_.frame(0).image.rows,
                   options_.lossless ? "lossless (replay speed 0)" : "newest frame wins",
                   source_.info().uri.c_str());
+  RDSLAM_LOG_INFO("pipeline: OpenCV thread pool %d (threads.opencv_threads %d)", opencv_threads_,
+                  options_.threads.opencv_threads);
   RDSLAM_LOG_INFO("pipeline threads:  %-15s %-8s %-12s %-8s %-8s %s", "thread", "tid", "cores",
                   "policy", "priority", "nice");
   for (int i = 0; i < kPipelineThreads; ++i) {

@@ -149,8 +149,9 @@ class Pipeline {
 
   // Before start(): sinks are called in the order added.
   void add_sink(PipelineSink* sink);
-  // Starts publisher, mapper, tracker, capture (consumers first), waits until each thread
-  // applied its name, affinity and priority, logs the thread table. Call once.
+  // Sets OpenCV's thread pool to opencv_threads_for(options.threads) (process-wide), starts
+  // publisher, mapper, tracker, capture (consumers first), waits until each thread applied its
+  // name, affinity and priority, logs the thread table. Call once.
   void start();
   // Any thread, idempotent, async-signal-safe (one atomic store): the capture thread stops
   // reading and sends end of stream through the pipeline.
@@ -221,6 +222,7 @@ class Pipeline {
   SpscRing<uint8_t> mapper_ctl_;  // tracker -> mapper: end of stream
 
   ThreadState threads_[kPipelineThreads];
+  int opencv_threads_ = 0;  // what start() gave cv::setNumThreads
   bool started_ = false;
   bool joined_ = false;
   std::atomic<bool> stop_requested_{false};
@@ -287,6 +289,15 @@ ReplayReport replay_source(FrameSource& source, TrackerStage& tracker, MapperSta
 // (another map epoch, none) keep their online pose. `final_map` must have had
 // set_keep_trail(true) before the run and must have stopped.
 Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_map = nullptr);
+
+// The size of OpenCV's thread pool for `threads` (ThreadParams::opencv_threads): the value
+// when it is >= 0; for -1, the number of cores the pipeline threads may use: the cores of the
+// union of their core sets that are in this process's CPU mask (sched_getaffinity; at least
+// 1), or every core of that mask when one thread has no core set. 0 = OpenCV runs everything
+// in the calling thread. OpenCV's worker threads are TBB's (Debian's OpenCV), which set their
+// own affinity to the process's mask, so this limits how many run, not where; a core kept
+// free of them needs the process mask (taskset, systemd CPUAffinity=). Start-up only.
+int opencv_threads_for(const ThreadParams& threads);
 
 // CLOCK_MONOTONIC in nanoseconds (the clock of Frame::arrival_mono_ns).
 int64_t mono_now_ns();

@@ -34,6 +34,9 @@ void ThreadParams::visit(ParamVisitor& v) {
   visit_thread(v, tracker, "tracker_cores", "tracker_priority", "tracker_nice");
   visit_thread(v, mapper, "mapper_cores", "mapper_priority", "mapper_nice");
   visit_thread(v, publisher, "publisher_cores", "publisher_priority", "publisher_nice");
+  v.field("opencv_threads", opencv_threads, -1, 1024,
+          "OpenCV's thread pool: -1 = the cores of the pipeline threads, 0 = none (calling "
+          "thread), N = N threads");
 }
 
 }  // namespace rdslam

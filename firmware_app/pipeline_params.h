@@ -44,6 +44,12 @@ struct ThreadParams {
   ThreadSpec tracker;
   ThreadSpec mapper;
   ThreadSpec publisher;
+  // OpenCV's own thread pool (cv::setNumThreads, process-wide, applied by Pipeline::start):
+  // -1 = as many threads as the pipeline threads have cores (the union of their core sets;
+  // the process's CPU mask when one of them may run on any core), 0 = OpenCV runs every
+  // function in the calling thread, N = N threads. Only the count: the pool's worker threads
+  // are TBB's, which run on the process's mask (opencv_threads_for, firmware_app/pipeline.h).
+  int opencv_threads = -1;
 
   void visit(ParamVisitor& v);
 };

@@ -14,6 +14,9 @@
 #include <cstdio>
 #include <string>
 #include <thread>
+#include <vector>
+
+#include <opencv2/core/utility.hpp>
 
 #include "drivers/replay_source.h"
 #include "firmware_app/passthrough_stages.h"
@@ -497,6 +500,47 @@ TEST(PassthroughStages, MapperStoresEveryTenthFrameAndFinishesAtEndOfStream) {
   EXPECT_EQ(stages.keyframes(), 10);
   EXPECT_EQ(stages.keyframes_dropped(), 0u);
   EXPECT_EQ(rep.stages.mapper.total, 10u);
+}
+
+// threads.opencv_threads: -1 sizes OpenCV's pool by the cores the pipeline threads may use.
+TEST(OpenCvThreads, AutoCountsTheUnionOfTheConfiguredCoresInTheProcessMask) {
+  cpu_set_t mask;
+  CPU_ZERO(&mask);
+  ASSERT_EQ(sched_getaffinity(0, sizeof(mask), &mask), 0);
+  std::vector<int> allowed;
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &mask)) allowed.push_back(c);
+  }
+  ThreadParams t;  // every thread on any core
+  EXPECT_EQ(opencv_threads_for(t), static_cast<int>(allowed.size()));
+  for (ThreadSpec* s : {&t.capture, &t.tracker, &t.mapper, &t.publisher}) s->cores = {allowed[0]};
+  EXPECT_EQ(opencv_threads_for(t), 1);
+  t.mapper.cores = {allowed[0], 100000};  // a core this process cannot use does not count
+  EXPECT_EQ(opencv_threads_for(t), 1);
+  if (allowed.size() >= 2) {
+    t.tracker.cores = {allowed[1]};
+    EXPECT_EQ(opencv_threads_for(t), 2);
+  }
+  t.publisher.cores.clear();  // one thread may run anywhere: the whole mask
+  EXPECT_EQ(opencv_threads_for(t), static_cast<int>(allowed.size()));
+  for (int n : {0, 1, 3}) {
+    t.opencv_threads = n;  // explicit values are taken as they are
+    EXPECT_EQ(opencv_threads_for(t), n);
+  }
+}
+
+TEST(OpenCvThreads, PipelineStartAppliesTheConfiguredPoolSize) {
+  const int before = cv::getNumThreads();
+  for (int n : {1, 3}) {
+    CountingSource source(5);
+    ScriptedTracker tracker;
+    IdleMapper mapper;
+    PipelineOptions o = small_options(true);
+    o.threads.opencv_threads = n;
+    replay_source(source, tracker, mapper, o);
+    EXPECT_EQ(cv::getNumThreads(), n);
+  }
+  cv::setNumThreads(before);
 }
 
 }  // namespace

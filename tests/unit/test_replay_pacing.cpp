@@ -174,6 +174,27 @@ TEST(ReplayPacing, SpeedScalesTheSchedule) {
   EXPECT_EQ(slow.clock.now - s0, 4 * kPeriod);
 }
 
+// `rdslam replay --realtime --speed 3`: frames come three times as often, with their recorded
+// stamps; a consumer that needs one recorded period per frame gets every third frame.
+TEST(ReplayPacing, FasterThanRecordedKeepsStampsAndSkipsWhatTheConsumerCannotTake) {
+  Rig r(3.0, 30);
+  const int64_t t0 = r.clock.now;
+  std::vector<int64_t> delivered;
+  for (;;) {
+    const SourceStatus st = r.src->read(r.frame, 1000);
+    if (st == SourceStatus::kEndOfStream) break;
+    ASSERT_EQ(st, SourceStatus::kOk);
+    const int64_t i = r.frame.dataset_index;
+    delivered.push_back(i);
+    EXPECT_EQ(r.frame.stamp_ns, kStamp0 + i * kPeriod) << "stamps stay the recorded ones";
+    EXPECT_EQ(r.frame.arrival_mono_ns, t0 + i * (kPeriod / 3)) << "due at 3x the rate";
+    r.clock.now += kPeriod;  // one recorded period of work: three frames fall due meanwhile
+  }
+  EXPECT_EQ(delivered, (std::vector<int64_t>{0, 3, 6, 9, 12, 15, 18, 21, 24, 27, 29}));
+  EXPECT_EQ(r.src->counters().skipped, 19u);
+  EXPECT_EQ(r.seq->loaded, delivered);  // skipped frames were never decoded
+}
+
 TEST(ReplayPacing, TimeoutKeepsTheStagedFrameForTheNextRead) {
   Rig r(0.1, 3);  // 10x slower: frame 1 is due 333 ms after frame 0
   const int64_t t0 = r.clock.now;
