@@ -130,6 +130,7 @@ TEST_F(DebPackage, BuildsWithFilesInFhsPlacesAndRealDepends) {
       "./etc/rdslam/rdslam.yaml",
       "./usr/lib/sysusers.d/rdslam.conf",
       "./usr/share/rdslam/examples/rdslam-realtime.conf",
+      "./usr/share/rdslam/vocab/orb_k10l4.bin",
       "./usr/share/doc/rdslam/README.md",
       "./usr/share/doc/rdslam/deploy.md",
   };
