@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "core/keyframe_database.h"
+#include "core/slam.h"
+#include "drivers/synth_source.h"
 #include "tests/unit/alloc_counting.h"
 
 namespace rdslam {
@@ -157,6 +159,46 @@ TEST(KeyframeDatabase, QueryDoesNotAllocate) {
   EXPECT_EQ(g_new_calls.load() - n0, 0u);
   EXPECT_EQ(found, 20);
 #endif
+}
+
+TEST(KeyframeDatabase, MapperKeepsItEqualToTheMapsKeyframes) {
+  // The mapper adds accepted keyframes and drops removed ones: with a cap of 6 keyframes the
+  // oldest go while static_xyz is mapped, and every published snapshot's database holds exactly
+  // its keyframes (this epoch), no culled one.
+  SourceOptions so;
+  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", so, 150);
+  const CameraModel cam = *src->camera();
+  SlamParams params;
+  params.mapper.max_keyframes = 6;
+  auto link = make_slam_link(params, 8);
+  ASSERT_TRUE(link->vocabulary) << "ORB mode loads the vocabulary";
+  Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, cam, link,
+                  params.mapper.max_points, params.mapper.max_keyframes);
+  Mapper mapper(params.mapper, params.features, cam, link);
+  Frame frame;
+  int checked = 0;
+  uint64_t seen = 0;
+  while (src->read(frame, 1000) == SourceStatus::kOk) {
+    tracker.track(frame);
+    while (mapper.step(0)) {
+    }
+    const auto snap = link->index.acquire();
+    if (!snap || link->index.version() == seen) continue;
+    seen = link->index.version();
+    ASSERT_TRUE(snap->places);
+    std::vector<int> in_db;
+    for (int e = 0; e < snap->places->size(); ++e) {
+      EXPECT_EQ(snap->places->epoch(e), snap->epoch);
+      in_db.push_back(snap->places->keyframe(e));
+    }
+    std::vector<int> kfs = snap->kf_ids;
+    std::sort(in_db.begin(), in_db.end());
+    std::sort(kfs.begin(), kfs.end());
+    EXPECT_EQ(in_db, kfs);
+    ++checked;
+  }
+  EXPECT_GT(mapper.stats().keyframes_culled, 0) << "the cap removed keyframes";
+  EXPECT_GT(checked, 5);
 }
 
 }  // namespace
