@@ -65,6 +65,14 @@ install(FILES ${CMAKE_SOURCE_DIR}/systemd/rdslam-realtime.conf
 install(FILES ${RDSLAM_LCM_FILES} DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/lcmtypes)
 install(FILES ${CMAKE_SOURCE_DIR}/tools/lcm/rdslam_msgs.py
         DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/python)
+# The place-recognition vocabulary (core/vocabulary.h): the source tree's copy while developing,
+# the installed one otherwise (default_vocabulary_path()).
+install(FILES ${CMAKE_SOURCE_DIR}/data/vocab/orb_k10l4.bin
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/rdslam/vocab)
+set_source_files_properties(
+  ${CMAKE_SOURCE_DIR}/core/vocabulary.cpp DIRECTORY ${CMAKE_SOURCE_DIR}/core
+  PROPERTIES COMPILE_DEFINITIONS
+  "RDSLAM_VOCAB_SOURCE=\"${CMAKE_SOURCE_DIR}/data/vocab/orb_k10l4.bin\";RDSLAM_VOCAB_INSTALLED=\"${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_DATADIR}/rdslam/vocab/orb_k10l4.bin\"")
 install(FILES ${CMAKE_SOURCE_DIR}/README.md ${CMAKE_SOURCE_DIR}/docs/deploy.md
         DESTINATION ${CMAKE_INSTALL_DOCDIR})
 

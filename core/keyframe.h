@@ -21,6 +21,7 @@
 #include "core/initializer.h"
 #include "core/match_index.h"
 #include "core/spsc_ring.h"
+#include "core/vocabulary.h"
 
 namespace rdslam {
 
@@ -70,6 +71,10 @@ struct SlamLink {
   Doorbell bell;    // tracker -> mapper: a candidate was queued
   Doorbell mapped;  // mapper -> tracker: a candidate was processed (sync mode only)
   MatchIndex index;
+  // Place recognition (core/keyframe_database.h, core/relocalizer.h): the ORB vocabulary the
+  // mapper describes keyframes with and the tracker describes LOST frames with; immutable, set
+  // before the stages are built (null: relocalization matches against every map point).
+  std::shared_ptr<const Vocabulary> vocabulary;
   std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate/observation
   std::atomic<int> keyframes{0}, points{0};
   std::atomic<int64_t> invalidated_points{0};

@@ -34,6 +34,18 @@ Mapper::Mapper(const MapperParams& params, const FeatureParams& features, const 
       camera_(camera),
       link_(std::move(link)) {
   cand_.resize(2048);
+  if (link_->vocabulary && fparams_.binary()) {
+    places_ = std::make_unique<KeyframeDatabaseBuilder>(link_->vocabulary->words());
+  }
+}
+
+void Mapper::add_place(int kf) {
+  // Place recognition: the keyframe's bag-of-words vector enters the database (published with
+  // the next snapshot; removed keyframes leave it at publish()).
+  const Keyframe* k = map_.keyframe(kf);
+  if (!places_ || k == nullptr) return;
+  link_->vocabulary->transform(k->features, bow_, voc_scratch_);
+  places_->add(epoch_, kf, bow_);
 }
 
 void Mapper::set_change_detection(const ChangeDetectionParams& p) {
@@ -125,6 +137,7 @@ void Mapper::process(const KeyframeCandidate& c) {
   switch (c.kind) {
     case KeyframeCandidate::Kind::kReset:
       map_ = Map();
+      if (places_) places_->clear();
       trail_.clear();
       if (updater_) updater_->reset();
       epoch_ = c.epoch;
@@ -203,6 +216,11 @@ void Mapper::handle_init(const KeyframeCandidate& c) {
     map_.update_point_geometry(kv.second, float(fparams_.scale_factor), fparams_.levels);
   }
   stats_.keyframes_accepted += 2;
+  if (places_) {
+    places_->clear();  // one map at a time for now: a new map replaces the old one's places
+    add_place(0);
+    add_place(1);
+  }
   publish();
 }
 
@@ -461,6 +479,7 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   fuse(id, related);
   refine_new_tracks(created);
   update_keyframe_points(id);
+  add_place(id);
   local_bundle_adjustment(id);
   cull(id);
   publish();
@@ -691,6 +710,7 @@ void Mapper::publish() {
   s->desc.create(std::max(1, rows), cols, type);
   s->obs_start.push_back(0);
   s->row_of.reserve(static_cast<size_t>(rows) * 2);
+  s->kf_row_start.assign(s->kf_ids.size() + 1, 0);
   for (const auto& [pid, p] : map_.points) {
     if (!p.valid || p.obs.size() < 2) continue;
     const int r = static_cast<int>(s->ids.size());
@@ -702,10 +722,25 @@ void Mapper::publish() {
     std::copy(p.desc.begin(), p.desc.end(), s->desc.ptr<uint8_t>(r));
     for (const auto& o : p.obs) {
       auto it = kf_index.find(o.kf);
-      if (it != kf_index.end()) s->obs_kf.push_back(it->second);
+      if (it == kf_index.end()) continue;
+      s->obs_kf.push_back(it->second);
+      ++s->kf_row_start[static_cast<size_t>(it->second) + 1];
     }
     s->obs_start.push_back(static_cast<int>(s->obs_kf.size()));
     s->row_of.emplace(pid, r);
+  }
+  // Each keyframe's rows (the inverse of obs_*), for relocalization against a few keyframes.
+  for (size_t k = 1; k < s->kf_row_start.size(); ++k) s->kf_row_start[k] += s->kf_row_start[k - 1];
+  s->kf_rows.resize(s->obs_kf.size());
+  std::vector<int> fill(s->kf_row_start.begin(), s->kf_row_start.end() - 1);
+  for (int r = 0; r < s->rows(); ++r) {
+    for (int o = s->obs_start[size_t(r)]; o < s->obs_start[size_t(r) + 1]; ++o) {
+      s->kf_rows[size_t(fill[size_t(s->obs_kf[size_t(o)])]++)] = r;
+    }
+  }
+  if (places_) {
+    places_->retain(epoch_, [&](int id) { return map_.keyframes.count(id) > 0; });
+    s->places = places_->build();
   }
   if (!s->binary && rows > 0) {
     // The paper's KD-tree over the reference features (FLANN, randomised k-d trees).

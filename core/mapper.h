@@ -19,7 +19,10 @@
 //     (MatchPurpose::kFuse);
 //  6. new tracks seen in >= 3 views get the multi-view estimate (Sec. 4's track equation:
 //     reprojection error minimised over all views); the new keyframe's points get their
-//     geometry and representative descriptor updated;
+//     geometry and representative descriptor updated; with a vocabulary (SlamLink::vocabulary,
+//     ORB) the keyframe's bag-of-words vector enters the place-recognition database
+//     (core/keyframe_database.h), which each publish copies into the snapshot when keyframes
+//     changed (removed keyframes leave it there);
 //  7. local bundle adjustment (core/bundle_adjustment.h): the new keyframe and its most
 //     covisible keyframes, `ba.window` keyframes in all;
 //  8. culling (bounded map), then publish.
@@ -49,6 +52,7 @@
 #include "core/bundle_adjustment.h"
 #include "core/features.h"
 #include "core/keyframe.h"
+#include "core/keyframe_database.h"
 #include "core/map.h"
 #include "core/map_updater.h"
 #include "core/matching.h"
@@ -154,6 +158,7 @@ class Mapper {
   void cull_unobserved_points();
   void cap_points();
   void publish();
+  void add_place(int kf);  // place recognition: the keyframe's vector into the database
   void fill_recent_invalid(MapSnapshot& s);
 
   MapperParams params_;
@@ -168,6 +173,11 @@ class Mapper {
   std::vector<int> cand_;
   ClaimTable claims_;  // triangulation: new keyframe feature -> related keyframe feature
   std::unique_ptr<MapUpdater> updater_;
+  // Place recognition (with SlamLink::vocabulary, ORB): keyframes' bag-of-words vectors, built
+  // into MapSnapshot::places at each publish.
+  std::unique_ptr<KeyframeDatabaseBuilder> places_;
+  BowVector bow_;
+  Vocabulary::Scratch voc_scratch_;
   struct Trail {
     int parent = -1;
     Pose T_kf_parent;  // removed keyframe's pose relative to `parent` when it was removed

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/geometry.h"
+#include "core/keyframe_database.h"
 
 namespace rdslam {
 
@@ -41,7 +42,13 @@ struct MapSnapshot {
   // Keyframes.
   std::vector<int> kf_ids;
   std::vector<Pose, Eigen::aligned_allocator<Pose>> kf_pose;  // T_cam_world
-  std::vector<int> kf_points;               // well-observed points of each keyframe (>= 3 views)
+  std::vector<int> kf_points;  // well-observed points of each keyframe (>= 3 views)
+  // Points of each keyframe (CSR, the inverse of obs_*): rows
+  // kf_rows[kf_row_start[k] .. kf_row_start[k+1]) are observed by keyframe kf_ids[k].
+  std::vector<int> kf_row_start, kf_rows;
+  // Place recognition (ORB with a vocabulary): the keyframe database of this map
+  // (core/keyframe_database.h), shared by the snapshots published while no keyframe changed.
+  std::shared_ptr<const KeyframeDatabase> places;
   std::unordered_map<int64_t, int> row_of;  // point id -> row
   // SIFT mode: the paper's KD-tree over `desc` (FLANN, 4 randomised trees).
   std::unique_ptr<cv::flann::Index> kdtree;

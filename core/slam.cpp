@@ -17,7 +17,7 @@ class TrackerStageImpl : public TrackerStage {
  public:
   TrackerStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
       : tracker_(p.tracker, p.features, p.mapper.ba, p.parsac, cam, std::move(link),
-                 p.mapper.max_points) {}
+                 p.mapper.max_points, p.mapper.max_keyframes) {}
   TrackResult track(const Frame& frame) override {
     TrackResult r = tracker_.track(frame);
     if (debug_) tracker_.emit_debug_frame(frame, r);
@@ -64,8 +64,18 @@ std::string SlamParams::validate() const {
   return {};
 }
 
+std::shared_ptr<SlamLink> make_slam_link(const SlamParams& params, uint32_t ring_capacity) {
+  auto link = std::make_shared<SlamLink>(ring_capacity, params.dynamic.observe_every_n());
+  if (params.features.binary()) {
+    const std::string& path = params.tracker.reloc_vocabulary;
+    link->vocabulary = std::make_shared<const Vocabulary>(
+        Vocabulary::load(path.empty() ? default_vocabulary_path() : path));
+  }
+  return link;
+}
+
 SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera) {
-  auto link = std::make_shared<SlamLink>(kCandidateSlots, params.dynamic.observe_every_n());
+  auto link = make_slam_link(params, kCandidateSlots);
   SlamStages s;
   s.tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
   s.mapper = std::make_unique<MapperStageImpl>(params, camera, link);
@@ -74,9 +84,9 @@ SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera)
 
 OfflineRun run_offline(FrameSource& source, const SlamParams& params, const CameraModel& camera,
                        int max_frames, const std::function<void(const OfflineFrame&)>& on_frame) {
-  auto link = std::make_shared<SlamLink>(kCandidateSlots, params.dynamic.observe_every_n());
+  auto link = make_slam_link(params, kCandidateSlots);
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, camera, link,
-                  params.mapper.max_points);
+                  params.mapper.max_points, params.mapper.max_keyframes);
   Mapper mapper(params.mapper, params.features, camera, link);
   mapper.set_change_detection(params.dynamic);
   OfflineRun run;

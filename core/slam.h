@@ -41,6 +41,11 @@ struct SlamStages {
   std::unique_ptr<MapperStage> mapper;
 };
 
+// The link between a tracker and a mapper (core/keyframe.h); in ORB mode with the place
+// recognition vocabulary loaded (tracker.reloc_vocabulary; throws std::runtime_error naming the
+// file when it is missing or corrupt).
+std::shared_ptr<SlamLink> make_slam_link(const SlamParams& params, uint32_t ring_capacity);
+
 SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera);
 
 struct OfflineFrame {

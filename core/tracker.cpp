@@ -29,6 +29,12 @@ void TrackerParams::visit(ParamVisitor& v) {
           "a robust estimate (parsac.method) with fewer inliers is no model");
   v.field("reloc_min_matches", reloc_min_matches, 6, 10000,
           "global matches needed to attempt a relocalization");
+  v.field("reloc_candidates", reloc_candidates, 1, 20,
+          "place recognition: keyframes whose points a LOST frame is matched with (ORB)");
+  v.field("reloc_node_level", reloc_node_level, 1, 8,
+          "place recognition: vocabulary level of the direct index (features matched per node)");
+  v.field("reloc_vocabulary", reloc_vocabulary, {},
+          "ORB vocabulary file (empty: the built-in data/vocab/orb_k10l4.bin)");
   v.field("m1", m1, 1, 100000, "paper Sec. 4: fewer common features -> potential keyframe");
   v.field("keyframe_overlap_ratio", keyframe_overlap_ratio, 0.0, 1.0,
           "or tracked points below this fraction of the reference keyframe's");
@@ -86,7 +92,8 @@ void Tracker::FrameState::reset_matches(int n) {
 
 Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
                  const BundleAdjustmentParams& ba, const ParsacParams& parsac,
-                 const CameraModel& camera, std::shared_ptr<SlamLink> link, int max_points)
+                 const CameraModel& camera, std::shared_ptr<SlamLink> link, int max_points,
+                 int max_keyframes)
     : params_(params),
       fparams_(features),
       camera_(camera),
@@ -101,7 +108,9 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
             q.inlier_threshold_px = params.submotion_gate_px;
             return q;
           }(),
-          camera, features.max_features + 64) {
+          camera, features.max_features + 64),
+      reloc_(RelocalizerParams{params.reloc_candidates, params.reloc_node_level}, features,
+             link_->vocabulary, max_keyframes, max_points) {
   const size_t cap = static_cast<size_t>(features.max_features) + 64;
   for (FrameState* s : {&cur_, &last_}) {
     s->pid.assign(cap, -1);
@@ -393,7 +402,7 @@ int Tracker::drop_and_refit(Pose& T, int n, int inliers, bool* dropped_any) {
 
 bool Tracker::relocalize() {
   if (!snap_ || snap_->rows() < params_.reloc_min_inliers) return false;
-  const int n = global_match(cur_.f, *snap_, fparams_, reloc_scratch_, reloc_pairs_.data(),
+  const int n = reloc_.match(cur_.f, *snap_, epoch_, reloc_pairs_.data(),
                              static_cast<int>(reloc_pairs_.size() / 2));
   if (n < params_.reloc_min_matches) return false;
   // reloc_pairs_ holds (feature, snapshot row) pairs.

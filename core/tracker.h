@@ -25,7 +25,8 @@
 //     extend_with_local_map    with at least `extend_min_inliers`: every visible map point in
 //                              `local_search_px`, eq. (1), then submotion_test
 //     update_state             TRACKING (>= `min_inliers`, new velocity) or LOST
-//   handle_lost              LOST: relocalize() (at least `reloc_min_matches` global matches,
+//   handle_lost              LOST: relocalize() (place recognition, then at least
+//                            `reloc_min_matches` matches with the candidates' points,
 //                            `robust_min_inliers` robust inliers, `reloc_min_inliers` after
 //                            refinement) or, lost too long with a tiny map, reset_map()
 //   a found pose is then proposed as a keyframe / observation (not the initialization frame,
@@ -50,10 +51,12 @@
 //
 // Ownership: Tracker owns all its buffers (sized at construction from the params) and holds
 // the active MapSnapshot. Threads: tracker thread only. No heap allocation per frame after
-// warm-up, except while INITIALIZING (OpenCV model fitting) and relocalizing.
+// warm-up, except while INITIALIZING (OpenCV model fitting) and, in SIFT mode (FLANN) or
+// without a vocabulary, relocalizing.
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/debug_frame.h"
@@ -79,7 +82,13 @@ struct TrackerParams {
   int extend_min_inliers = 10;  // inliers needed to extend the pose with the local map
   int robust_min_inliers = 10;  // a robust estimate with fewer inliers is no model
   int reloc_min_matches = 10;   // global matches needed to attempt relocalization
-  int m1 = 80;                  // paper Sec. 4: fewer common features -> potential keyframe
+  // Place recognition for relocalization (ORB, core/relocalizer.h): keyframes matched per LOST
+  // frame, vocabulary level of the direct index, and the vocabulary file ("" = the built-in
+  // data/vocab/orb_k10l4.bin, default_vocabulary_path()).
+  int reloc_candidates = 3;
+  int reloc_node_level = 2;
+  std::string reloc_vocabulary;
+  int m1 = 80;                          // paper Sec. 4: fewer common features -> potential keyframe
   double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
   int young_map_keyframes = 12;         // below this many keyframes the map is young
@@ -130,7 +139,7 @@ class Tracker {
  public:
   Tracker(const TrackerParams& params, const FeatureParams& features,
           const BundleAdjustmentParams& ba, const ParsacParams& parsac, const CameraModel& camera,
-          std::shared_ptr<SlamLink> link, int max_points);
+          std::shared_ptr<SlamLink> link, int max_points, int max_keyframes);
   TrackResult track(const Frame& frame);
   const TrackerStats& stats() const { return stats_; }
   TrackingState state() const { return state_; }
@@ -235,9 +244,9 @@ class Tracker {
   std::vector<int> corr_feat_;
   std::vector<uint8_t> corr_inl_;
   std::vector<int> reloc_pairs_;
-  GlobalMatchScratch reloc_scratch_;  // grows to the largest snapshot once
-  cv::Mat ref_image_;                 // image of the initializer's reference frame
-  std::vector<int64_t> row_stamp_;    // per snapshot row: frame_no_ when matched this frame
+  Relocalizer reloc_;  // place recognition and matching while LOST (sized by the map caps)
+  cv::Mat ref_image_;  // image of the initializer's reference frame
+  std::vector<int64_t> row_stamp_;  // per snapshot row: frame_no_ when matched this frame
   // Per snapshot row: track_no_ of the frame whose robust estimate rejected the point.
   std::vector<int64_t> row_rejected_;
   int64_t track_no_ = 0;  // frames tracked (frame_no_ also advances between search passes)

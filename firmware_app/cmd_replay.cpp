@@ -189,6 +189,7 @@ int cmd_replay(int argc, char** argv) {
   compute_tracking_stats(states, report);
   compute_latency_stats(latency_ms, report);
   const StateTiming init_ms = tracker_ms_in_state(states, track_ms, TrackingState::kInitializing);
+  const StateTiming lost_ms = tracker_ms_while_lost(states, track_ms);
   report.fps = rr.wall_s > 0 ? rr.frames.size() / rr.wall_s : 0.0;
   report.peak_rss_mb = peak_rss_mb();
   const std::optional<Trajectory> gt = source->ground_truth();
@@ -213,6 +214,10 @@ int cmd_replay(int argc, char** argv) {
   if (init_ms.frames > 0) {
     std::printf("  %-26s p50 %.2f  p99 %.2f (%lld frames)\n", "tracker ms initializing",
                 *init_ms.p50_ms, *init_ms.p99_ms, static_cast<long long>(init_ms.frames));
+  }
+  if (lost_ms.frames > 0) {
+    std::printf("  %-26s p50 %.2f  p99 %.2f (%lld frames)\n", "tracker ms lost", *lost_ms.p50_ms,
+                *lost_ms.p99_ms, static_cast<long long>(lost_ms.frames));
   }
   std::printf("  %-26s p50 %.2f  p99 %.2f\n", "latency ms", report.latency_p50_ms,
               report.latency_p99_ms);
@@ -300,6 +305,12 @@ int cmd_replay(int argc, char** argv) {
     w.value("p50", init_ms.p50_ms);
     w.value("p99", init_ms.p99_ms);
     w.value("frames", init_ms.frames);
+    w.end_object();
+    // Frames processed while LOST (relocalization; tracker_ms_while_lost); null when none.
+    w.begin_object("lost_tracker_ms");
+    w.value("p50", lost_ms.p50_ms);
+    w.value("p99", lost_ms.p99_ms);
+    w.value("frames", lost_ms.frames);
     w.end_object();
     w.begin_object("dropped");  // captured + source_skipped == processed + total
     w.value("total", static_cast<int64_t>(st.frames_dropped));

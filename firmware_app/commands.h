@@ -13,5 +13,6 @@ int cmd_eval(int argc, char** argv);
 int cmd_record(int argc, char** argv);
 int cmd_bench(int argc, char** argv);
 int cmd_replay(int argc, char** argv);
+int cmd_vocab(int argc, char** argv);
 
 }  // namespace rdslam

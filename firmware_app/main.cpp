@@ -27,6 +27,7 @@ const Command kCommands[] = {
     {"bench", "benchmarks behind docs/ figures (bench parsac: Tables 1, 2)", rdslam::cmd_bench},
     {"replay", "run the SLAM pipeline on a recorded or synthetic source, with ATE",
      rdslam::cmd_replay},
+    {"vocab", "place-recognition vocabulary: train, info, recall", rdslam::cmd_vocab},
 };
 
 void print_help() {

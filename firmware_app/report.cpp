@@ -235,6 +235,21 @@ StateTiming tracker_ms_in_state(const std::vector<TrackingState>& states,
   for (size_t i = 0; i < states.size() && i < track_ms.size(); ++i) {
     if (states[i] == state) v.push_back(track_ms[i]);
   }
+  return timing_of(v);
+}
+
+StateTiming tracker_ms_while_lost(const std::vector<TrackingState>& states,
+                                  const std::vector<double>& track_ms) {
+  // A frame is processed in the LOST state when the frame before it ended LOST: relocalization
+  // ran on it, whatever its own result (LOST, RELOCALIZED, or INITIALIZING after a reset).
+  std::vector<double> v;
+  for (size_t i = 1; i < states.size() && i < track_ms.size(); ++i) {
+    if (states[i - 1] == TrackingState::kLost) v.push_back(track_ms[i]);
+  }
+  return timing_of(v);
+}
+
+StateTiming timing_of(const std::vector<double>& v) {
   StateTiming t;
   t.frames = static_cast<int64_t>(v.size());
   if (!v.empty()) {

@@ -93,6 +93,12 @@ struct StateTiming {
 // `states` and `track_ms` are per frame, in frame order, of equal length.
 StateTiming tracker_ms_in_state(const std::vector<TrackingState>& states,
                                 const std::vector<double>& track_ms, TrackingState state);
+// The replay report's `lost_tracker_ms`: the frames processed while LOST (relocalization), i.e.
+// the frames after a frame whose result was LOST, whatever their own result.
+StateTiming tracker_ms_while_lost(const std::vector<TrackingState>& states,
+                                  const std::vector<double>& track_ms);
+// Frame count and p50/p99 of `ms` (empty percentiles for no frame).
+StateTiming timing_of(const std::vector<double>& ms);
 
 // Fills ate_rmse_m / ate_rmse_pct_path: `estimate` holds the poses of the tracked frames,
 // aligned to `ground_truth` with Sim3 (monocular: no metric scale) after association by

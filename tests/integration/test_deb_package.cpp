@@ -131,6 +131,7 @@ TEST_F(DebPackage, BuildsWithFilesInFhsPlacesAndRealDepends) {
       "./usr/lib/sysusers.d/rdslam.conf",
       "./usr/share/rdslam/examples/rdslam-realtime.conf",
       "./usr/share/rdslam/python/rdslam_msgs.py",
+      "./usr/share/rdslam/vocab/orb_k10l4.bin",
       "./usr/share/doc/rdslam/README.md",
       "./usr/share/doc/rdslam/deploy.md",
   };

@@ -241,9 +241,9 @@ DynResult run(bool occlusion_handling, bool map_update = true,
   params.dynamic.occlusion_handling = occlusion_handling;
   // Defaults: per-frame updating every dynamic.check_every_n_frames frames, histogram trigger
   // 0 (the paper's global trigger, sum > 1, never fires here: measured 0 points checked).
-  auto link = std::make_shared<SlamLink>(2, params.dynamic.observe_every_n());
+  auto link = make_slam_link(params, 2);
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, cam, link,
-                  params.mapper.max_points);
+                  params.mapper.max_points, params.mapper.max_keyframes);
   Mapper mapper(params.mapper, params.features, cam, link);
   mapper.set_change_detection(params.dynamic);
   std::vector<InvalidationRecord> log;

@@ -1,7 +1,8 @@
 // `rdslam replay --every N` through the real threaded pipeline: the replay processes the
 // source's frames 0, N, 2N, ... (dataset indices in --timings), its report counts only those,
 // and the report has `init_tracker_ms` {p50, p99, frames} (the frames processed while
-// INITIALIZING). Timings are not checked, only that they are there.
+// INITIALIZING) and `lost_tracker_ms` (while LOST). Timings are not checked, only that they are
+// there.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -54,6 +55,12 @@ TEST(ReplayEvery, KeepsEveryNthFrameAndReportsInitTrackerTime) {
   EXPECT_NE(block.find("\"frames\": "), std::string::npos) << block;
   // The first frame only sets the initializer's reference: at least one INITIALIZING frame.
   EXPECT_EQ(block.find("\"p50\": null"), std::string::npos) << block;
+  // lost_tracker_ms: present, null percentiles and 0 frames (static_xyz never loses tracking).
+  const size_t lost = json.find("\"lost_tracker_ms\": {");
+  ASSERT_NE(lost, std::string::npos) << json;
+  const std::string lblock = json.substr(lost, json.find('}', lost) - lost);
+  EXPECT_NE(lblock.find("\"p50\": null"), std::string::npos) << lblock;
+  EXPECT_NE(lblock.find("\"frames\": 0"), std::string::npos) << lblock;
 }
 
 TEST(ReplayEvery, RefusesNonPositiveOrFractionalN) {

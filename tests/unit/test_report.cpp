@@ -67,6 +67,20 @@ TEST(Report, TrackerTimeWhileInitializing) {
   EXPECT_FALSE(none.p99_ms.has_value());
 }
 
+TEST(Report, TrackerTimeWhileLost) {
+  // lost_tracker_ms: the frames after a LOST result (relocalization ran on them), whatever
+  // their own result; the frame that lost tracking was processed while TRACKING.
+  const rdslam::StateTiming t =
+      rdslam::tracker_ms_while_lost({T, L, L, L, R, T, L, I, I}, {1, 2, 30, 10, 20, 3, 4, 40, 5});
+  EXPECT_EQ(t.frames, 4);  // 30 (L), 10 (L), 20 (R), 40 (I, a reset)
+  ASSERT_TRUE(t.p50_ms && t.p99_ms);
+  EXPECT_DOUBLE_EQ(*t.p50_ms, 25.0);
+  EXPECT_DOUBLE_EQ(*t.p99_ms, 10 + 0.99 * 3 * 10);
+  const rdslam::StateTiming none = rdslam::tracker_ms_while_lost({T, L}, {1, 2});
+  EXPECT_EQ(none.frames, 0);
+  EXPECT_FALSE(none.p50_ms.has_value());
+}
+
 TEST(Report, JsonHasTheCommonKeysInOrder) {
   RunReport r;
   r.frames = 10;

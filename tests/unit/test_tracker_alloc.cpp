@@ -18,6 +18,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/slam.h"
@@ -122,6 +123,77 @@ TEST(TrackerAlloc, DimFramesWithTheCellFallbackDoNotAllocate) {
   GTEST_SKIP() << "allocation counting is disabled under sanitizers";
 #else
   expect_no_allocation_after_warm_up("dim", 180);
+#endif
+}
+
+TEST(TrackerAlloc, SlamTrackerDoesNotAllocateWhileLost) {
+#if !RDSLAM_ALLOC_COUNTING
+  GTEST_SKIP() << "allocation counting is disabled under sanitizers";
+#else
+  // Relocalization (issue 23): static_xyz is tracked for 120 frames; then 8 frames of
+  // textured noise (features everywhere, no place of the map) make the tracker LOST and run
+  // place recognition and matching without success; then the sequence starts again from its
+  // first frame (a jump back), where the tracker relocalizes. The measured window is every
+  // track() call made while LOST (the frame after a LOST result), the successful one included.
+  SourceOptions so;
+  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", so, 120);
+  const CameraModel cam = *src->camera();
+  SlamParams params;  // the defaults: ORB features with the place-recognition vocabulary
+  SlamStages stages = make_slam_stages(params, cam);
+  const bool trace = std::getenv("RDSLAM_ALLOC_TRACE") != nullptr;
+  Frame frame;
+  TrackingState last = TrackingState::kInitializing;
+  int64_t stamp = 0;
+  uint64_t window_mallocs = 0, window_news = 0;
+  int lost_frames = 0, relocalized = -1, n = 0;
+  auto step = [&](const Frame& f) {
+    const bool in_window = last == TrackingState::kLost;
+    const uint64_t m0 = g_malloc_calls.load(), n0 = g_new_calls.load();
+    if (in_window && trace) g_alloc_trace = true;
+    const TrackResult r = stages.tracker->track(f);
+    g_alloc_trace = false;
+    if (in_window) {
+      window_mallocs += g_malloc_calls.load() - m0;
+      window_news += g_new_calls.load() - n0;
+      ++lost_frames;
+      if (r.state == TrackingState::kRelocalized && relocalized < 0) relocalized = n;
+    }
+    while (stages.mapper->step(0)) {
+    }
+    last = r.state;
+    ++n;
+  };
+  while (src->read(frame, 1000) == SourceStatus::kOk) {
+    stamp = frame.stamp_ns;
+    step(frame);
+  }
+  ASSERT_EQ(last, TrackingState::kTracking) << "static_xyz tracked before the jump";
+  cv::Mat noise(frame.image.size(), frame.image.type());
+  for (int i = 0; i < 8; ++i) {
+    cv::randu(noise, 0, 255);
+    cv::GaussianBlur(noise, noise, cv::Size(5, 5), 1.2);
+    noise.copyTo(frame.image);
+    frame.stamp_ns = stamp += 33'333'333;
+    ++frame.seq;
+    step(frame);
+  }
+  EXPECT_EQ(last, TrackingState::kLost) << "noise frames are not a place of the map";
+  std::unique_ptr<FrameSource> again = open_synth_source("static_xyz", so, 30);
+  const uint64_t seq0 = frame.seq + 1;
+  while (again->read(frame, 1000) == SourceStatus::kOk) {
+    frame.stamp_ns = stamp += 33'333'333;
+    frame.seq += seq0;
+    step(frame);
+  }
+  std::printf(
+      "[ measured ] %d frames processed while LOST (relocalized at frame %d): %llu "
+      "malloc-family calls, %llu operator new\n",
+      lost_frames, relocalized, static_cast<unsigned long long>(window_mallocs),
+      static_cast<unsigned long long>(window_news));
+  EXPECT_GE(lost_frames, 8) << "the window must contain the failed relocalization attempts";
+  EXPECT_GT(relocalized, 0) << "the jump back must relocalize";
+  EXPECT_EQ(window_mallocs, 0u) << "C allocations in track() while LOST";
+  EXPECT_EQ(window_news, 0u) << "operator new calls in track() while LOST";
 #endif
 }
 
