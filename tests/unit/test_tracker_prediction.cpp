@@ -44,8 +44,9 @@ GapStats run(bool recorded_stamps) {
   std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", so, kFrames);
   const CameraModel cam = *src->camera();
   SlamParams p;  // defaults: ORB, PARSAC per frame
-  auto link = std::make_shared<SlamLink>(2, p.dynamic.observe_every_n());
-  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points);
+  auto link = make_slam_link(p, 2);
+  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
+                  p.mapper.max_keyframes);
   Mapper mapper(p.mapper, p.features, cam, link);
   mapper.set_change_detection(p.dynamic);
 
