@@ -250,8 +250,9 @@ std::string office(const char* camera, const char* extra_objects, const std::str
 // and 2 s at 1. The renderer applies the gain after shading and rounds to 8 bits before
 // adding the sensor noise (sigma 2 grey levels), so the dim frames have 15% of the contrast
 // under the same noise. Keys every 5 frames (the loader interpolates linearly between them).
-std::string dim() {
-  constexpr double kLow = 0.15;
+// `dim_dark` is the same room and path falling to 8%: there the per-cell FAST fallback
+// (features.min_fast_threshold) decides whether the dark frames keep their pose.
+std::string dim(const char* name, double kLow) {
   std::string keys = "exposure: [[0, 1.0]";
   auto key = [&keys](int frame, double gain) {
     char buf[48];
@@ -268,7 +269,7 @@ std::string dim() {
   }
   key(359, 1.0);
   keys += "]\n";
-  return office(kXyzCamera, "", "name: dim\nframes: 360\n" + keys);
+  return office(kXyzCamera, "", std::string("name: ") + name + "\nframes: 360\n" + keys);
 }
 
 const std::map<std::string, std::string>& table() {
@@ -411,7 +412,8 @@ trajectory:
                                      "name: walking_xyz_fisheye\nframes: 300\n"
                                      "camera: {model: pinhole-equidistant, fx: 305, fy: 305}\n")},
       {"dominant_object", dominant_object()},
-      {"dim", dim()},
+      {"dim", dim("dim", 0.15)},
+      {"dim_dark", dim("dim_dark", 0.08)},
   };
   return t;
 }
@@ -432,7 +434,8 @@ const std::vector<std::string>& synth_scenario_names() {
                                                  "dominant_object",
                                                  "walking_xyz_radtan",
                                                  "walking_xyz_fisheye",
-                                                 "dim"};
+                                                 "dim",
+                                                 "dim_dark"};
   return names;
 }
 

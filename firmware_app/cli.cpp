@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 
 #include "core/log.h"
 
@@ -156,6 +157,21 @@ AppConfig load_cli_config(const std::string& config_path,
   LogLevel level = LogLevel::kInfo;
   if (parse_log_level(cfg.general.log_level.c_str(), level)) set_log_level(level);
   return cfg;
+}
+
+int run_subcommand(const char* command, const char* heading, const Subcommand* subs, size_t n,
+                   int argc, char** argv) {
+  if (argc < 1 || std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0) {
+    std::printf("usage: rdslam %s WHAT [options]   (rdslam %s WHAT --help)\n\n%s:\n", command,
+                command, heading);
+    for (size_t i = 0; i < n; ++i) std::printf("  %-10s %s\n", subs[i].name, subs[i].summary);
+    return argc < 1 ? 2 : 0;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (std::strcmp(argv[0], subs[i].name) == 0) return subs[i].run(argc - 1, argv + 1);
+  }
+  throw UsageError(std::string("unknown ") + command + " command '" + argv[0] + "' (see rdslam " +
+                   command + " --help)");
 }
 
 }  // namespace rdslam

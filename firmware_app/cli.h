@@ -5,6 +5,7 @@
 // the offending argument.
 #pragma once
 
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -60,6 +61,19 @@ class ArgParser {
   std::vector<Opt> opts_;
   std::vector<Pos> pos_;
 };
+
+// A command with subcommands (`rdslam bench WHAT`, `rdslam vocab WHAT`): one row each.
+struct Subcommand {
+  const char* name;
+  const char* summary;
+  int (*run)(int argc, char** argv);
+};
+
+// Runs the subcommand named by argv[0] with the remaining arguments. No argument or
+// --help/-h prints "usage: rdslam COMMAND WHAT [options]" and the table under `heading`
+// (returns 2 without an argument, 0 for --help); an unknown name throws UsageError.
+int run_subcommand(const char* command, const char* heading, const Subcommand* subs, size_t n,
+                   int argc, char** argv);
 
 // SourceOptions from the configuration: camera (and whether --set camera.* overrode it), LCM
 // URL, live-camera sections, and replay pacing `speed` (0 = as fast as read).

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <string>
 #include <thread>
 #include <vector>
@@ -288,14 +289,8 @@ int bench_parsac(int argc, char** argv) {
   return 0;
 }
 
-struct Bench {
-  const char* name;
-  const char* summary;
-  int (*run)(int argc, char** argv);
-};
-
 // One row per benchmark.
-const Bench kBenches[] = {
+const Subcommand kBenches[] = {
     {"parsac", "RDSLAM Sec. 5 synthetic experiment: Tables 1 and 2", bench_parsac},
     {"pipeline", "SLAM pipeline: per-stage times, fps, latency, peak RSS (issue 10)",
      bench_pipeline},
@@ -304,15 +299,7 @@ const Bench kBenches[] = {
 }  // namespace
 
 int cmd_bench(int argc, char** argv) {
-  if (argc < 1 || std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0) {
-    std::printf("usage: rdslam bench WHAT [options]   (rdslam bench WHAT --help)\n\nbenchmarks:\n");
-    for (const auto& b : kBenches) std::printf("  %-10s %s\n", b.name, b.summary);
-    return argc < 1 ? 2 : 0;
-  }
-  for (const auto& b : kBenches) {
-    if (std::strcmp(argv[0], b.name) == 0) return b.run(argc - 1, argv + 1);
-  }
-  throw UsageError(std::string("unknown benchmark '") + argv[0] + "' (see rdslam bench --help)");
+  return run_subcommand("bench", "benchmarks", kBenches, std::size(kBenches), argc, argv);
 }
 
 }  // namespace rdslam

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -165,12 +166,7 @@ int vocab_recall(int argc, char** argv) {
   return 0;
 }
 
-struct Sub {
-  const char* name;
-  const char* summary;
-  int (*run)(int argc, char** argv);
-};
-const Sub kSubs[] = {
+const Subcommand kSubs[] = {
     {"train", "train an ORB vocabulary (hierarchical k-medians) on frame sources", vocab_train},
     {"info", "a vocabulary file's shape and checksum", vocab_info},
     {"recall", "place-recognition recall of a vocabulary on a sequence", vocab_recall},
@@ -179,15 +175,7 @@ const Sub kSubs[] = {
 }  // namespace
 
 int cmd_vocab(int argc, char** argv) {
-  if (argc < 1 || std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0) {
-    std::printf("usage: rdslam vocab WHAT [options]   (rdslam vocab WHAT --help)\n\n");
-    for (const auto& s : kSubs) std::printf("  %-8s %s\n", s.name, s.summary);
-    return argc < 1 ? 2 : 0;
-  }
-  for (const auto& s : kSubs) {
-    if (std::strcmp(argv[0], s.name) == 0) return s.run(argc - 1, argv + 1);
-  }
-  throw UsageError(std::string("unknown vocab command '") + argv[0] + "'");
+  return run_subcommand("vocab", "commands", kSubs, std::size(kSubs), argc, argv);
 }
 
 }  // namespace rdslam

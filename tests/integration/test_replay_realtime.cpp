@@ -1,8 +1,10 @@
 // `rdslam replay --realtime --speed K` (issue 23 item 7) through the real threaded pipeline:
 // the source delivers frames at K times the recorded rate, so the replay lasts about 1/K of
-// the recorded duration, and the report records the speed. The timing bound is loose (a
-// loaded 2-core CI machine): below 0.6 of the recorded duration at K = 4, and never below the
-// schedule itself (the last frame is not due before 1/4 of it).
+// the recorded duration, and the report records the speed. Only the schedule's own bound is
+// asserted (the last frame is not due before 1/4 of the recorded duration: a run that ends
+// earlier was not paced); an upper bound would measure the machine's load, not rdslam. That
+// K scales the schedule exactly is tested with a fake clock in tests/unit/test_replay_pacing.cpp
+// (SpeedScalesTheSchedule); the wall time is printed for the log.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -45,7 +47,6 @@ TEST(ReplayRealtime, SpeedFourRunsInAQuarterOfTheRecordedDurationAndReportsIt) {
   const double wall = json_number(json, "wall_s");
   std::printf("speed 4: %.2f s for %.2f s recorded (%.2f)\n", wall, kRecordedS, wall / kRecordedS);
   EXPECT_GE(wall, 0.24 * kRecordedS) << "faster than the schedule: not paced";
-  EXPECT_LT(wall, 0.6 * kRecordedS) << "not paced at 4x";
   // Every frame of the source is either processed or counted as dropped.
   const double frames = json_number(json, "frames");
   const size_t dropped = json.find("\"dropped\": {");

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The replay set (issue 21's behaviour check): every built-in synthetic scenario
-# (dominant_object at seeds 1-6, walking_xyz's lens variants after them) and, when ../shared
+# (dominant_object at seeds 1-6, walking_xyz's lens variants and the dim rooms after them) and, when ../shared
 # is present, the KITTI 06 excerpt, each through `rdslam replay` (lossless, deterministic,
 # default configuration). Writes OUT/<name>.tum and OUT/<name>.json and prints a table:
 # tracked frames, first tracked frame, ATE % of path (online, final), keyframes and map
@@ -40,7 +40,7 @@ done
 for seed in 1 2 3 4 5 6; do  # issue 22's family: a dominant moving object, by seed
   sources+=("dominant_object_s$seed=synth:dominant_object?seed=$seed")
 done
-for s in walking_xyz_radtan walking_xyz_fisheye; do  # issue 23: walking_xyz through lenses
+for s in walking_xyz_radtan walking_xyz_fisheye dim dim_dark; do  # issue 23: lenses, dim light
   sources+=("$s=synth:$s")
 done
 kitti="$repo/../shared/data/kitti06_excerpt"
