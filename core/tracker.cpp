@@ -465,7 +465,9 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   cur_.T = init.T1;
   // Constant velocity from the initial motion spread over the frames it took.
   const int age = std::max(1, initializer_.reference_age());
-  velocity_ = scale_motion(init.T1, 1.0 / age);
+  const Eigen::AngleAxisd aa(init.T1.R);
+  velocity_.R = Eigen::AngleAxisd(aa.angle() / age, aa.axis()).toRotationMatrix();
+  velocity_.t = init.T1.t / age;
   velocity_dt_ns_ = (frame.stamp_ns - init.reference_stamp_ns) / age;
   state_ = TrackingState::kTracking;
   frames_since_kf_ = 0;
