@@ -57,8 +57,9 @@ int cmd_run(int argc, char** argv) {
   ArgParser p("rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL]",
               "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
               "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
-              "over LCM. A recorded source (e.g. --set source=tum:DIR) replays at\n"
-              "pipeline.replay_speed and ends with exit code 0; a camera runs until SIGINT or\n"
+              "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
+              "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
+              "with exit code 0; a camera runs until SIGINT or\n"
               "SIGTERM. Logs go to stderr (journald-friendly).");
   p.config_options(&config_path, &overrides);
   p.option("--log-level", &log_level, "LEVEL", "debug, info, warn or error (sets log_level)");
