@@ -6,6 +6,7 @@
 #   killed   : rdslam view polled, then SIGKILLed halfway through the replay
 #   no-image : no subscriber, viewer.image_hz=0 and viewer.map_hz=0 (poses and status only)
 # Prints per run: dropped frames, tracker p50/p99, capture-to-publish latency p50/p99.
+# VIEWER_IMPACT_CASES="killed" runs only the cases named.
 # Usage: benchmarks/viewer_impact.sh [-b BIN] [-s SOURCE] [-r ROUNDS] [-k SPEED] [-t KILL_S] OUT_DIR
 # (-k: --speed K of the replay, default 1; -t: seconds after the start that "killed" kills the
 # view, default 15: after the preload, about halfway through static_xyz at K = 1)
@@ -54,24 +55,28 @@ run() {  # run NAME ROUND
     --report "$out/$name$r.json" >"$out/$name$r.txt" 2>/dev/null &
   local rp=$!
   if [[ $name == killed ]]; then
+    # Records whether the replay was still running when the view died.
     ( sleep "$kill_s"; kill -KILL "$view_pid" 2>/dev/null
-      echo "killed view at +$kill_s s" >>"$out/$name$r.txt" ) &
+      if kill -0 "$rp" 2>/dev/null; then state=running; else state="already ended"; fi
+      echo "killed view at +$kill_s s, replay $state" >"$out/kill_$name$r.txt" ) &
   fi
   wait $rp
-  [[ -n $poll_pid ]] && kill "$poll_pid" 2>/dev/null
-  [[ -n $view_pid ]] && kill "$view_pid" 2>/dev/null
+  if [[ -n $poll_pid ]]; then kill "$poll_pid" 2>/dev/null || true; fi
+  if [[ -n $view_pid ]]; then kill "$view_pid" 2>/dev/null || true; fi
   wait 2>/dev/null || true
-  python3 - "$out/$name$r.json" "$name" "$r" <<'PY'
-import json, sys
+  python3 - "$out/$name$r.json" "$name" "$r" "$out/kill_$name$r.txt" <<'PY'
+import json, os, sys
 j = json.load(open(sys.argv[1]))
+note = open(sys.argv[4]).read().strip() if os.path.exists(sys.argv[4]) else ""
 print(f"{sys.argv[2]:9s} round {sys.argv[3]}: frames {j['frames']}, dropped {j['dropped']['total']}, "
       f"tracker p50/p99 {j['tracker_ms']['p50']:.2f}/{j['tracker_ms']['p99']:.2f} ms, "
-      f"latency p50/p99 {j['latency_ms']['p50']:.2f}/{j['latency_ms']['p99']:.2f} ms")
+      f"latency p50/p99 {j['latency_ms']['p50']:.2f}/{j['latency_ms']['p99']:.2f} ms"
+      + (f" ({note})" if note else ""))
 PY
 }
 
 echo "# $src at speed $speed, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 for r in $(seq "$rounds"); do
-  for name in none view killed no-image; do run "$name" "$r"; done
+  for name in ${VIEWER_IMPACT_CASES:-none view killed no-image}; do run "$name" "$r"; done
 done
 echo "# load $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -41,6 +41,7 @@
 #include "core/log.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
+#include "firmware_app/pipeline.h"
 #include "firmware_app/view_page.h"
 #include "rdslam/map_t.hpp"
 #include "rdslam/pose_t.hpp"
@@ -49,12 +50,6 @@
 namespace rdslam {
 
 namespace {
-
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 const char* state_name(int s) {
   switch (s) {
@@ -209,7 +204,7 @@ class ViewState {
            static_cast<unsigned long long>(ignored_));
     j += "\"last_message_age_s\":";
     if (last_msg_ns_ > 0) {
-      append_num(j, (mono_ns() - last_msg_ns_) * 1e-9, "%.2f");
+      append_num(j, (mono_now_ns() - last_msg_ns_) * 1e-9, "%.2f");
     } else {
       j += "null";
     }
@@ -274,7 +269,7 @@ class ViewState {
   }
 
  private:
-  void touch() { last_msg_ns_ = mono_ns(); }
+  void touch() { last_msg_ns_ = mono_now_ns(); }
   static std::string json_safe(const std::string& s) {
     std::string o;
     for (char c : s) {

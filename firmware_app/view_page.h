@@ -71,8 +71,8 @@ const $ = (id) => document.getElementById(id);
 let traj = [];          // flat x, y, z of tracked poses (world)
 let trajGen = -1;
 let map = {kf: [], pts: [], valid: []};
-let mapVersion = -1, imageSeq = -1, cur = null;
-let view = {yaw: 0.6, pitch: 0.5, dist: 5, tx: 0, ty: 0, tz: 0, user: false};
+let mapVersion = -1, imageSeq = -1, cur = null, fitVersion = "";
+let view = {yaw: 0.35, pitch: 0.45, dist: 5, tx: 0, ty: 0, tz: 0, user: false};
 function fmt(v, d) { return (v === null || v === undefined) ? "-" : Number(v).toFixed(d); }
 
 async function poll() {
@@ -121,16 +121,24 @@ async function poll() {
 }
 
 function fit() {
-  const src = traj.length ? traj : map.kf;
-  const all = src.concat(map.kf);
-  if (all.length < 3) return;
+  // Bounds of the trajectory, the keyframes and the middle 90% of the map points per axis.
+  const all = traj.concat(map.kf);
   let lo = [1e30, 1e30, 1e30], hi = [-1e30, -1e30, -1e30];
   for (let i = 0; i < all.length; i += 3) for (let k = 0; k < 3; ++k) {
     lo[k] = Math.min(lo[k], all[i + k]); hi[k] = Math.max(hi[k], all[i + k]);
   }
+  const n = map.pts.length / 3;
+  if (n >= 20) for (let k = 0; k < 3; ++k) {
+    const v = [];
+    for (let i = 0; i < n; ++i) v.push(map.pts[3 * i + k]);
+    v.sort((a, b) => a - b);
+    lo[k] = Math.min(lo[k], v[Math.floor(0.05 * (n - 1))]);
+    hi[k] = Math.max(hi[k], v[Math.ceil(0.95 * (n - 1))]);
+  }
+  if (lo[0] > hi[0]) return;
   view.tx = (lo[0] + hi[0]) / 2; view.ty = (lo[1] + hi[1]) / 2; view.tz = (lo[2] + hi[2]) / 2;
   const ext = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 0.5);
-  view.dist = 2.2 * ext;
+  view.dist = 1.6 * ext;
 }
 
 // World (camera frame of the first keyframe: x right, y down, z forward) to canvas pixels.
@@ -151,7 +159,9 @@ function draw() {
   const cv = $("view"), g = cv.getContext("2d");
   const w = cv.clientWidth | 0, h = cv.clientHeight | 0;
   if (w > 0 && (cv.width !== w || cv.height !== h)) { cv.width = w; cv.height = h; }
-  if (!view.user) fit();  // follows the map until the user moves the view
+  if (!view.user && fitVersion !== mapVersion + ":" + traj.length) {  // follows the map until moved
+    fit(); fitVersion = mapVersion + ":" + traj.length;
+  }
   g.fillStyle = "#0d0f12"; g.fillRect(0, 0, cv.width, cv.height);
   const P = projector(cv);
   for (let i = 0, n = map.valid.length; i < n; ++i) {

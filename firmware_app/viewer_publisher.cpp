@@ -15,17 +15,12 @@
 #include "bot_core/image_t.hpp"
 #include "core/log.h"
 #include "firmware_app/debug_video.h"
+#include "firmware_app/pipeline.h"
 #include "rdslam/map_t.hpp"
 
 namespace rdslam {
 
 namespace {
-
-int64_t now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 int64_t period_ns(double hz) {
   return hz > 0.0 ? static_cast<int64_t>(1e9 / hz) : 0;
@@ -65,7 +60,7 @@ ViewerPublisher::~ViewerPublisher() {
 
 DebugFrame* ViewerPublisher::acquire_record(const Frame& /*frame*/) {
   if (record_period_ns_ <= 0) return nullptr;
-  const int64_t now = now_ns();
+  const int64_t now = mono_now_ns();
   if (now < next_record_ns_) return nullptr;
   uint8_t idx = 0;
   if (!free_.try_pop(idx)) {
@@ -141,7 +136,7 @@ bool ViewerPublisher::send(const char* channel, const std::vector<uint8_t>& buf)
 }
 
 void ViewerPublisher::process(DebugFrame& d) {
-  const int64_t now = now_ns();
+  const int64_t now = mono_now_ns();
   // Half a record period of slack: records arrive at the fastest of the two rates.
   const int64_t slack = record_period_ns_ / 2;
   const bool image_due = params_.image_hz > 0.0 && now + slack >= next_image_ns_;
