@@ -70,6 +70,7 @@ DebugFrame* ViewerPublisher::acquire_record(const Frame& /*frame*/) {
   // Due again one period after this frame (not after the previous due time: no burst after a
   // pause of the source).
   next_record_ns_ = now + record_period_ns_;
+  lent_ns_[idx] = now;
   return records_[idx].get();
 }
 
@@ -115,7 +116,7 @@ void ViewerPublisher::worker() {
     uint8_t idx = 0;
     if (filled_.try_pop(idx)) {
       DebugFrame& d = *records_[idx];
-      process(d);
+      process(d, lent_ns_[idx]);
       d.snapshot.reset();  // the mapper frees retired snapshots nobody holds
       free_.try_push(idx);
       continue;
@@ -135,8 +136,7 @@ bool ViewerPublisher::send(const char* channel, const std::vector<uint8_t>& buf)
   return true;
 }
 
-void ViewerPublisher::process(DebugFrame& d) {
-  const int64_t now = mono_now_ns();
+void ViewerPublisher::process(DebugFrame& d, int64_t now) {
   // Half a record period of slack: records arrive at the fastest of the two rates.
   const int64_t slack = record_period_ns_ / 2;
   const bool image_due = params_.image_hz > 0.0 && now + slack >= next_image_ns_;

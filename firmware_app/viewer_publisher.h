@@ -72,7 +72,7 @@ class ViewerPublisher final : public DebugFrameSink {
  private:
   static constexpr int kRecords = 2;
   void worker();
-  void process(DebugFrame& d);
+  void process(DebugFrame& d, int64_t lent_ns);
   bool send(const char* channel, const std::vector<uint8_t>& buf);
 
   const LcmParams lcm_params_;
@@ -87,6 +87,10 @@ class ViewerPublisher final : public DebugFrameSink {
   // Tracker thread: next due times (CLOCK_MONOTONIC ns) of a record.
   int64_t next_record_ns_ = 0;
   int64_t record_period_ns_ = 0;
+  // When each record was lent (tracker thread; read by the viewer thread after the ring hands
+  // it over): the image and map rates are kept on these times, not on the viewer thread's
+  // own, so a late viewer thread does not skip a due image.
+  int64_t lent_ns_[kRecords] = {};
   // Viewer thread.
   int64_t next_image_ns_ = 0, next_map_ns_ = 0;
   std::atomic<bool> stopping_{false};
