@@ -141,7 +141,8 @@ void ViewerPublisher::process(DebugFrame& d, int64_t now) {
   const int64_t slack = record_period_ns_ / 2;
   const bool image_due = params_.image_hz > 0.0 && now + slack >= next_image_ns_;
   const bool map_due = params_.map_hz > 0.0 && now + slack >= next_map_ns_;
-  renderer_->observe(d);  // the track and the invalidation ages (of the records it sees)
+  renderer_->observe(d);     // the invalidation ages (of the records it sees)
+  renderer_->clear_track();  // not drawn (the top view is cropped away): bounded memory
   std::vector<uint8_t> buf;
   if (image_due) {
     next_image_ns_ = now + period_ns(params_.image_hz) - slack;
