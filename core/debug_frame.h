@@ -6,7 +6,10 @@
 // Off by default and free when off: the tracker fills and emits a DebugFrame only after
 // TrackerStage::set_debug_sink() gave it a sink; without one it does no extra work and no
 // allocation. When on, each record allocates (an image copy, the feature list) on the
-// tracker thread.
+// tracker thread, unless the sink recycles its own records (recycles_records(): the live
+// viewer publisher, firmware_app/viewer_publisher.h): then the tracker fills a record the
+// sink lends it, in place, only for the frames the sink asks for, and allocates nothing once
+// the sink's records have the frame's size.
 //
 // Ownership: the record owns its image and feature list and shares (read-only) the
 // MapSnapshot the tracker matched against, so a sink may keep it and draw on another thread.
@@ -19,6 +22,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "core/frame_source.h"
 #include "core/geometry.h"
 #include "core/match_index.h"
 #include "core/stages.h"
@@ -66,6 +70,15 @@ class DebugFrameSink {
   // Tracker thread, after track() returned for this frame. May block (lossless replay) or
   // drop the record; must not call back into the tracker.
   virtual void on_debug_frame(DebugFrame&& frame) = 0;
+
+  // Recycling sinks (true, constant for the sink's life): instead of on_debug_frame(), the
+  // tracker calls acquire_record() once per frame; a null result skips the frame (not wanted
+  // now, or no free record), otherwise the tracker overwrites every field of the record in
+  // place (image with copyTo, features with resize: no allocation once they have the size
+  // and capacity) and hands it back with submit_record(). Tracker thread; neither may block.
+  virtual bool recycles_records() const { return false; }
+  virtual DebugFrame* acquire_record(const Frame& /*frame*/) { return nullptr; }
+  virtual void submit_record(DebugFrame* /*record*/) {}
 };
 
 }  // namespace rdslam

@@ -795,19 +795,33 @@ void Tracker::set_debug_sink(DebugFrameSink* sink, int recent_invalid) {
 
 void Tracker::emit_debug_frame(const Frame& frame, const TrackResult& result) {
   if (!debug_sink_) return;
+  if (debug_sink_->recycles_records()) {
+    DebugFrame* rec = debug_sink_->acquire_record(frame);
+    if (rec) {
+      fill_debug_frame(frame, result, *rec);
+      debug_sink_->submit_record(rec);
+    }
+  } else {
+    DebugFrame d;
+    fill_debug_frame(frame, result, d);
+    debug_sink_->on_debug_frame(std::move(d));
+  }
+  std::fill(debug_rejected_.begin(), debug_rejected_.end(), uint8_t{0});
+}
+
+void Tracker::fill_debug_frame(const Frame& frame, const TrackResult& result, DebugFrame& d) const {
   // track() swaps this frame into last_ exactly when it returns a found pose (TRACKING or
   // RELOCALIZED, including the initialization frame); otherwise the frame is still in cur_.
   const bool found =
       result.state == TrackingState::kTracking || result.state == TrackingState::kRelocalized;
   const FrameState& fs = found ? last_ : cur_;
-  DebugFrame d;
   d.seq = frame.seq;
   d.stamp_ns = frame.stamp_ns;
   d.dataset_index = frame.dataset_index;
   d.result = result;
   d.has_pose = result.state != TrackingState::kInitializing;
-  d.T_cam_world = last_.T;  // found: this frame (swapped in); LOST: the last good pose
-  d.image = frame.image.clone();
+  d.T_cam_world = last_.T;      // found: this frame (swapped in); LOST: the last good pose
+  frame.image.copyTo(d.image);  // reuses a recycled record's buffer of the same size
   d.features.resize(static_cast<size_t>(fs.f.count));
   for (int j = 0; j < fs.f.count; ++j) {
     DebugFeature& df = d.features[static_cast<size_t>(j)];
@@ -820,9 +834,7 @@ void Tracker::emit_debug_frame(const Frame& frame, const TrackResult& result) {
       df.kind = static_cast<DebugFeatureKind>(debug_rejected_[j]);
     }
   }
-  std::fill(debug_rejected_.begin(), debug_rejected_.end(), uint8_t{0});
   d.snapshot = snap_;
-  debug_sink_->on_debug_frame(std::move(d));
 }
 
 }  // namespace rdslam

@@ -151,6 +151,7 @@ class Tracker {
   void emit_debug_frame(const Frame& frame, const TrackResult& result);
 
  private:
+  void fill_debug_frame(const Frame& frame, const TrackResult& result, DebugFrame& d) const;
   void refresh_snapshot();
   int match_motion(const Pose& T, double radius);
   int match_local_map(const Pose& T, double radius);

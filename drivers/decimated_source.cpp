@@ -53,11 +53,11 @@ class DecimatedSource final : public FrameSource {
 std::unique_ptr<FrameSource> make_decimated_source(std::unique_ptr<FrameSource> inner, int every) {
   if (!inner) throw std::runtime_error("--every: no source");
   if (every < 1) throw std::runtime_error("--every: must be an integer >= 1");
+  if (every == 1) return inner;  // nothing to decimate: any source, a paced replay included
   if (inner->info().live) {
     throw std::runtime_error("--every: needs a recorded source, not a live one (" +
                              inner->info().uri + ")");
   }
-  if (every == 1) return inner;
   return std::make_unique<DecimatedSource>(std::move(inner), every);
 }
 

@@ -20,10 +20,12 @@
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
 #include "firmware_app/debug_video.h"
+#include "firmware_app/lcm_publisher.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/plot.h"
 #include "firmware_app/progress.h"
 #include "firmware_app/report.h"
+#include "firmware_app/viewer_publisher.h"
 
 namespace rdslam {
 
@@ -94,7 +96,17 @@ int cmd_replay(int argc, char** argv) {
   p.flag("--no-occlusion-handling", &no_occlusion_handling,
          "alias of --set dynamic.occlusion_handling=false");
   p.option("--estimator", &estimator, "ransac|arsac|parsac", "alias of --set parsac.method=...");
+  bool lcm_out = false;
+  p.flag("--lcm", &lcm_out,
+         "publish on the configured lcm.url what `rdslam run` publishes: rdslam.pose_t per "
+         "frame, rdslam.status_t, the annotated JPEG image and rdslam.map_t (viewer.*), so a "
+         "recording drives `rdslam view` and any LCM subscriber (not with --debug-video/-images)");
   if (!p.parse(argc, argv)) return 0;
+  if (lcm_out && (!debug_video.empty() || !debug_images.empty())) {
+    throw UsageError(
+        "--lcm: cannot be combined with --debug-video or --debug-images (the "
+        "tracker has one debug output)");
+  }
   if (no_map_update) overrides.push_back("dynamic.map_update=false");
   if (no_occlusion_handling) overrides.push_back("dynamic.occlusion_handling=false");
   if (!estimator.empty()) overrides.push_back("parsac.method=" + estimator);
@@ -165,14 +177,26 @@ int cmd_replay(int argc, char** argv) {
     debug_writer = std::make_unique<DebugVideoWriter>(dopt, camera);
     stages.tracker->set_debug_sink(debug_writer.get());
   }
+  std::unique_ptr<LcmPublisher> lcm_pub;
+  std::unique_ptr<ViewerPublisher> viewer_pub;
+  std::vector<PipelineSink*> sinks;
+  if (lcm_out) {
+    lcm_pub = std::make_unique<LcmPublisher>(cfg.lcm);
+    sinks.push_back(lcm_pub.get());
+    if (cfg.viewer.enabled()) {
+      viewer_pub = std::make_unique<ViewerPublisher>(cfg.lcm, cfg.viewer, camera);
+      stages.tracker->set_debug_sink(viewer_pub.get());
+    }
+  }
 
   PipelineOptions options;
   options.params = cfg.pipeline;
   options.threads = cfg.threads;
   options.lossless = !realtime;
   ProgressSink progress(source->info().frame_count, stderr);
-  const ReplayReport rr =
-      replay_source(*source, *stages.tracker, *stages.mapper, options, {&progress});
+  sinks.push_back(&progress);
+  const ReplayReport rr = replay_source(*source, *stages.tracker, *stages.mapper, options, sinks);
+  if (viewer_pub) viewer_pub->stop();
   DebugVideoStats dstats;
   if (debug_writer) dstats = debug_writer->finish();
 
@@ -249,6 +273,21 @@ int cmd_replay(int argc, char** argv) {
       std::printf(", %lld PNGs in %s", static_cast<long long>(dstats.images), debug_images.c_str());
     }
     if (dstats.dropped > 0) std::printf(", %lld dropped", static_cast<long long>(dstats.dropped));
+    std::printf("\n");
+  }
+  if (lcm_pub) {
+    std::printf("  %-26s %llu poses, %llu statuses on %s", "lcm",
+                static_cast<unsigned long long>(lcm_pub->poses_published()),
+                static_cast<unsigned long long>(lcm_pub->statuses_published()),
+                cfg.lcm.url.c_str());
+    if (viewer_pub) {
+      const ViewerPublisherStats vs = viewer_pub->stats();
+      std::printf("; viewer: %llu images (largest %llu B), %llu maps (largest %llu B)",
+                  static_cast<unsigned long long>(vs.images),
+                  static_cast<unsigned long long>(vs.max_image_bytes),
+                  static_cast<unsigned long long>(vs.maps),
+                  static_cast<unsigned long long>(vs.max_map_bytes));
+    }
     std::printf("\n");
   }
 

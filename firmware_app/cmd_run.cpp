@@ -17,6 +17,7 @@
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/service_notify.h"
+#include "firmware_app/viewer_publisher.h"
 
 namespace rdslam {
 
@@ -56,8 +57,9 @@ int cmd_run(int argc, char** argv) {
   ArgParser p("rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL]",
               "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
               "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
-              "over LCM. A recorded source (e.g. --set source=tum:DIR) replays at\n"
-              "pipeline.replay_speed and ends with exit code 0; a camera runs until SIGINT or\n"
+              "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
+              "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
+              "with exit code 0; a camera runs until SIGINT or\n"
               "SIGTERM. Logs go to stderr (journald-friendly).");
   p.config_options(&config_path, &overrides);
   p.option("--log-level", &log_level, "LEVEL", "debug, info, warn or error (sets log_level)");
@@ -81,13 +83,13 @@ int cmd_run(int argc, char** argv) {
   SlamStages slam;
   TrackerStage* tracker = nullptr;
   MapperStage* mapper = nullptr;
+  CameraModel camera = cfg.camera;
   if (cfg.pipeline.stages == "passthrough") {
     passthrough = std::make_unique<PassthroughStages>(source->ground_truth());
     tracker = &passthrough->tracker();
     mapper = &passthrough->mapper();
   } else {
-    const CameraModel camera =
-        (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
+    if (!so.camera_overridden && source->camera()) camera = *source->camera();
     cfg.slam.parsac = cfg.parsac;
     slam = make_slam_stages(cfg.slam, camera);
     tracker = slam.tracker.get();
@@ -95,6 +97,16 @@ int cmd_run(int argc, char** argv) {
   }
   RDSLAM_LOG_INFO("run: stages %s", cfg.pipeline.stages.c_str());
   LcmPublisher lcm(cfg.lcm);
+  // The viewer's image and map (viewer.*), from the tracker's debug records on a thread of
+  // their own; the pass-through stages have no debug output.
+  std::unique_ptr<ViewerPublisher> viewer;
+  if (cfg.viewer.enabled() && cfg.pipeline.stages != "passthrough") {
+    viewer = std::make_unique<ViewerPublisher>(cfg.lcm, cfg.viewer, camera);
+    tracker->set_debug_sink(viewer.get());
+    RDSLAM_LOG_INFO("run: viewer image on %s at %g Hz, map on %s at %g Hz",
+                    cfg.lcm.image_channel.c_str(), cfg.viewer.image_hz, cfg.lcm.map_channel.c_str(),
+                    cfg.viewer.map_hz);
+  }
   PipelineOptions options;
   options.params = cfg.pipeline;
   options.threads = cfg.threads;
@@ -124,6 +136,7 @@ int cmd_run(int argc, char** argv) {
   }
   notify.stopping("end of stream");  // no-op after a signal
   pipeline.join();
+  if (viewer) viewer->stop();
   const PipelineStatus s = pipeline.status();
   RDSLAM_LOG_INFO("run: %s after %llu frames (%llu dropped); %llu poses published",
                   pipeline.stop_requested() ? "stopped" : "end of stream",

@@ -14,5 +14,6 @@ int cmd_record(int argc, char** argv);
 int cmd_bench(int argc, char** argv);
 int cmd_replay(int argc, char** argv);
 int cmd_vocab(int argc, char** argv);
+int cmd_view(int argc, char** argv);
 
 }  // namespace rdslam

@@ -19,6 +19,16 @@ void LcmParams::visit(ParamVisitor& v) {
   v.field("publish_bot_core_pose", publish_bot_core_pose,
           "also publish libbot2 bot_core.pose_t for existing tooling");
   v.field("bot_core_pose_channel", bot_core_pose_channel, {}, "channel of bot_core.pose_t");
+  v.field("image_channel", image_channel, {}, "channel of the annotated bot_core.image_t (JPEG)");
+  v.field("map_channel", map_channel, {}, "channel of rdslam.map_t (keyframes, map points)");
+}
+
+void ViewerParams::visit(ParamVisitor& v) {
+  v.field("image_hz", image_hz, 0.0, 30.0, "annotated JPEG images per second; 0 = none");
+  v.field("map_hz", map_hz, 0.0, 10.0, "rdslam.map_t messages per second; 0 = none");
+  v.field("map_max_points", map_max_points, 0, 100000, "map points per rdslam.map_t at most");
+  v.field("image_max_width", image_max_width, 64, 4096, "wider images are downscaled");
+  v.field("jpeg_quality", jpeg_quality, 10, 100, "JPEG quality of the image");
 }
 
 void GeneralParams::visit(ParamVisitor& v) {
@@ -31,6 +41,7 @@ std::vector<AppConfig::Section> AppConfig::sections() {
       {"", [this](ParamVisitor& v) { general.visit(v); }},
       {"camera", [this](ParamVisitor& v) { camera.visit(v); }},
       {"lcm", [this](ParamVisitor& v) { lcm.visit(v); }},
+      {"viewer", [this](ParamVisitor& v) { viewer.visit(v); }},
       {"v4l2", [this](ParamVisitor& v) { v4l2.visit(v); }},
       {"libcamera", [this](ParamVisitor& v) { libcamera.visit(v); }},
       {"pipeline", [this](ParamVisitor& v) { pipeline.visit(v); }},
@@ -56,6 +67,8 @@ void AppConfig::validate() const {
   if (lcm.status_channel.empty()) {
     throw ConfigError("config: lcm.status_channel: must not be empty");
   }
+  if (lcm.image_channel.empty()) throw ConfigError("config: lcm.image_channel: must not be empty");
+  if (lcm.map_channel.empty()) throw ConfigError("config: lcm.map_channel: must not be empty");
 }
 
 namespace {

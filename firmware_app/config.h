@@ -35,6 +35,21 @@ struct LcmParams {
   std::string status_channel = "RDSLAM_STATUS";
   bool publish_bot_core_pose = false;
   std::string bot_core_pose_channel = "POSE_BODY";
+  std::string image_channel = "RDSLAM_IMAGE";  // bot_core.image_t JPEG for viewers
+  std::string map_channel = "RDSLAM_MAP";      // rdslam.map_t for viewers
+  void visit(ParamVisitor& v);
+};
+
+// What `rdslam run` and `rdslam replay --lcm` publish for viewers (rdslam view;
+// firmware_app/viewer_publisher.h): an annotated camera image and a map sample, at low rates,
+// off the capture-to-publish path. Both rates 0: nothing (the tracker emits no debug record).
+struct ViewerParams {
+  double image_hz = 2.0;      // annotated JPEG images per second (0 = none)
+  double map_hz = 1.0;        // rdslam.map_t per second (0 = none)
+  int map_max_points = 5000;  // points per rdslam.map_t at most (a strided sample)
+  int image_max_width = 640;  // larger images are downscaled to this width
+  int jpeg_quality = 70;
+  bool enabled() const { return image_hz > 0.0 || map_hz > 0.0; }
   void visit(ParamVisitor& v);
 };
 
@@ -48,6 +63,7 @@ struct AppConfig {
   GeneralParams general;  // top-level keys: source, log_level
   CameraModel camera;
   LcmParams lcm;
+  ViewerParams viewer;        // image and map for viewers (firmware_app/viewer_publisher.h)
   V4l2Params v4l2;            // USB cameras (drivers/v4l2_source.h)
   LibcameraParams libcamera;  // CSI cameras through libcamera (drivers/libcamera_source.h)
   PipelineParams pipeline;    // frame pool, rings, replay pacing (firmware_app/pipeline.h)

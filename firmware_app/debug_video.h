@@ -66,6 +66,9 @@ class DebugRenderer {
 
   // Every frame, in order (also those not drawn): camera track, invalidation ages.
   void observe(const DebugFrame& d);
+  // Forgets the camera track (the top view's; it grows by one position per tracked frame).
+  // For a long-running user that does not draw the top view (the live viewer).
+  void clear_track() { track_.clear(); }
   // Draws `d` (after observe(d)) into `canvas` (reallocated to canvas_size(), CV_8UC3).
   void render(const DebugFrame& d, cv::Mat& canvas);
 

@@ -28,6 +28,8 @@ const Command kCommands[] = {
     {"replay", "run the SLAM pipeline on a recorded or synthetic source, with ATE",
      rdslam::cmd_replay},
     {"vocab", "place-recognition vocabulary: train, info, recall", rdslam::cmd_vocab},
+    {"view", "serve a live web view (image, 3D map, state) of rdslam's LCM output",
+     rdslam::cmd_view},
 };
 
 void print_help() {

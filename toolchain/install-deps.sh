@@ -28,7 +28,14 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
   ffmpeg systemd opencv-doc
   python3 python3-venv python3-dev
+  chromium
 )
+# The viewer's end-to-end test (tests/e2e) runs in Debian's chromium through playwright-core
+# from the npm registry; node and npm come from Debian unless a node is already installed
+# (e.g. a nodesource nodejs, which conflicts with Debian's npm package).
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -74,6 +81,13 @@ for p in "${optional[@]}"; do
   DEBIAN_FRONTEND=noninteractive "${opt_sudo[@]}" apt-get install -y -qq --no-install-recommends "$p" >/dev/null ||
     echo "install-deps: optional package $p could not be installed: the libcamera: source will not be built" >&2
 done
+
+# playwright-core, pinned by tests/e2e/package-lock.json.
+if [[ ! -f "$here/tests/e2e/node_modules/playwright-core/package.json" ]]; then
+  echo "install-deps: npm ci in tests/e2e (playwright-core for the viewer's browser test)"
+  npm ci --prefix "$here/tests/e2e" --no-audit --no-fund --loglevel=error >/dev/null ||
+    { echo "install-deps: npm ci in tests/e2e failed" >&2; exit 1; }
+fi
 
 if ((with_python)); then
   venv="$here/.venv"

@@ -21,6 +21,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/debug_frame.h"
 #include "core/slam.h"
 #include "drivers/synth_source.h"
 #include "tests/unit/alloc_counting.h"
@@ -53,14 +54,40 @@ TEST(TrackerAlloc, CountingAllocatorSeesAllocations) {
 }
 
 #if RDSLAM_ALLOC_COUNTING
+// A recycling debug sink as the live viewer's (firmware_app/viewer_publisher.h): one record,
+// lent every third frame, handed back at once.
+class RecyclingSink final : public DebugFrameSink {
+ public:
+  RecyclingSink() { record_.features.reserve(10000 + 64); }
+  void on_debug_frame(DebugFrame&& /*frame*/) override { ++legacy_calls; }
+  bool recycles_records() const override { return true; }
+  DebugFrame* acquire_record(const Frame& /*frame*/) override {
+    return (asked++ % 3 == 0) ? &record_ : nullptr;
+  }
+  void submit_record(DebugFrame* record) override {
+    ++filled;
+    if (record == &record_ && !record->image.empty() && !record->features.empty()) ++complete;
+    if (record->has_pose && record->snapshot) ++with_map;
+  }
+  int asked = 0, filled = 0, complete = 0, with_map = 0, legacy_calls = 0;
+
+ private:
+  DebugFrame record_;
+};
+
 // Runs `scenario`'s first `frames` frames through the tracker and mapper and asserts that
-// the tracker's track() calls after the warm-up do not allocate.
-void expect_no_allocation_after_warm_up(const char* scenario, int frames) {
+// the tracker's track() calls after the warm-up do not allocate (with `debug_sink`, also the
+// filling of its records).
+void expect_no_allocation_after_warm_up(const char* scenario, int frames,
+                                        RecyclingSink* debug_sink = nullptr) {
   SourceOptions so;
   std::unique_ptr<FrameSource> src = open_synth_source(scenario, so, frames);
   const CameraModel cam = *src->camera();
   SlamParams params;  // the defaults: ORB features, PARSAC per frame
   SlamStages stages = make_slam_stages(params, cam);
+  if (debug_sink) {
+    ASSERT_TRUE(stages.tracker->set_debug_sink(debug_sink));
+  }
   const bool trace = std::getenv("RDSLAM_ALLOC_TRACE") != nullptr;
 
   Frame frame;
@@ -105,6 +132,22 @@ TEST(TrackerAlloc, SlamTrackerDoesNotAllocateAfterWarmUp) {
   GTEST_SKIP() << "allocation counting is disabled under sanitizers";
 #else
   expect_no_allocation_after_warm_up("static_xyz", kFrames);
+#endif
+}
+
+// The live viewer's image and map come from debug records the tracker fills in place
+// (core/debug_frame.h, recycling sinks): no allocation on the tracker thread either.
+TEST(TrackerAlloc, RecyclingDebugSinkDoesNotAllocateAfterWarmUp) {
+#if !RDSLAM_ALLOC_COUNTING
+  GTEST_SKIP() << "allocation counting is disabled under sanitizers";
+#else
+  RecyclingSink sink;
+  expect_no_allocation_after_warm_up("static_xyz", kFrames, &sink);
+  EXPECT_EQ(sink.asked, kFrames) << "asked once per frame";
+  EXPECT_EQ(sink.filled, kFrames / 3) << "filled only when lent";
+  EXPECT_EQ(sink.complete, sink.filled) << "every record has the image and the features";
+  EXPECT_GT(sink.with_map, sink.filled / 2) << "records carry the pose and the map snapshot";
+  EXPECT_EQ(sink.legacy_calls, 0) << "a recycling sink gets no allocated records";
 #endif
 }
 
