@@ -823,9 +823,10 @@ void Mapper::start_epoch(uint32_t epoch) {
 }
 
 void Mapper::freeze_current() {
-  // Keep the current map (more than 2 keyframes, max_epochs > 0), frozen, with its places and
-  // last snapshot; the oldest kept map goes above max_epochs. A tiny map is dropped.
-  const bool keep = params_.max_epochs > 0 && map_.keyframes.size() > 2;
+  // Keep the current map (more than 2 keyframes, max_epochs > 0, place recognition: ORB with a
+  // vocabulary), frozen, with its places and last snapshot; the oldest kept map goes above
+  // max_epochs. Otherwise the map is dropped.
+  const bool keep = places_ != nullptr && params_.max_epochs > 0 && map_.keyframes.size() > 2;
   if (!keep) {
     if (places_) places_->retain(epoch_, [](int) { return false; });
     return;
