@@ -28,7 +28,7 @@ namespace rdslam {
 struct KeyframeCandidate {
   enum class Kind : uint8_t { kKeyframe, kInit, kReset };
   Kind kind = Kind::kKeyframe;
-  uint32_t epoch = 0;  // map epoch (incremented by each reset)
+  uint32_t epoch = 0;  // map epoch (a new one at each reset; an earlier one after a merge)
   int64_t stamp_ns = 0;
   Pose T_cam_world;
   Features features;
@@ -78,6 +78,7 @@ struct SlamLink {
   std::atomic<int> mapper_busy{0};  // 1 while the mapper processes a candidate/observation
   std::atomic<int> keyframes{0}, points{0};
   std::atomic<int64_t> invalidated_points{0};
+  std::atomic<int> merges{0};  // recovery: maps merged into earlier ones (core/map_merge.h)
   // Debug output (core/debug_frame.h): > 0 makes the mapper list this many recently
   // invalidated points in each snapshot (MapSnapshot::invalid_*). Set before the run.
   std::atomic<int> debug_recent_invalid{0};

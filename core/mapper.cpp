@@ -22,6 +22,12 @@ void MapperParams::visit(ParamVisitor& v) {
   v.field("redundant_fraction", redundant_fraction, 0.0, 1.0,
           "Sec. 4's 90% rule: invalid or shared points above this fraction cull the keyframe "
           "(mapper) or mark it invalid (map updating)");
+  v.field("max_epochs", max_epochs, 0, 16,
+          "recovery: earlier maps kept frozen for relocalization and merging (0: none)");
+  v.field("merge_min_inliers", merge_min_inliers, 6, 10000,
+          "recovery: Sim(3) RANSAC inliers a merge with an earlier map needs");
+  v.field("merge_min_matches", merge_min_matches, 6, 10000,
+          "recovery: keyframe features matched by projection a merge needs");
   PrefixVisitor ba_v(v, "ba_");
   ba.visit(ba_v);
 }
@@ -136,18 +142,14 @@ void Mapper::process_observation(const FrameObservation& o) {
 void Mapper::process(const KeyframeCandidate& c) {
   switch (c.kind) {
     case KeyframeCandidate::Kind::kReset:
-      map_ = Map();
-      if (places_) places_->clear();
-      trail_.clear();
-      if (updater_) updater_->reset();
-      epoch_ = c.epoch;
-      link_->keyframes.store(0);
-      link_->points.store(0);
+      start_epoch(c.epoch);
       return;
     case KeyframeCandidate::Kind::kInit:
       handle_init(c);
       return;
     case KeyframeCandidate::Kind::kKeyframe:
+      // The tracker relocalized into a kept earlier map: it becomes the current map again.
+      if (c.epoch != epoch_ && !reactivate(c.epoch)) return;
       if (c.epoch == epoch_ && !map_.keyframes.empty()) {
         const bool changed = update_on_candidate(c);
         const int published = stats_.snapshots;
@@ -178,9 +180,11 @@ bool Mapper::update_on_candidate(const KeyframeCandidate& c) {
 }
 
 void Mapper::handle_init(const KeyframeCandidate& c) {
+  if (places_) places_->retain(c.epoch, [](int) { return false; });
   map_ = Map();
   trail_.clear();
   epoch_ = c.epoch;
+  ++stats_.maps_started;
   Keyframe& k0 = map_.keyframes[0];
   k0.id = 0;
   k0.fixed = true;
@@ -217,8 +221,7 @@ void Mapper::handle_init(const KeyframeCandidate& c) {
   }
   stats_.keyframes_accepted += 2;
   if (places_) {
-    places_->clear();  // one map at a time for now: a new map replaces the old one's places
-    add_place(0);
+    add_place(0);  // kept earlier maps keep their places (recovery)
     add_place(1);
   }
   publish();
@@ -480,8 +483,12 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   refine_new_tracks(created);
   update_keyframe_points(id);
   add_place(id);
-  local_bundle_adjustment(id);
-  cull(id);
+  int kf = id;
+  if (!kept_.empty() && try_merge(id, &kf)) {
+    update_keyframe_points(kf);  // the fused points' geometry and descriptors
+  }
+  local_bundle_adjustment(kf);
+  cull(kf);
   publish();
 }
 
@@ -632,17 +639,51 @@ void Mapper::retire_keyframe(int kid) {
   map_.erase_keyframe(kid);
 }
 
+bool Mapper::resolve_merges(uint32_t* epoch, int* id, double* scale) const {
+  for (size_t hops = 0; hops <= merges_.size(); ++hops) {
+    const auto m = merges_.find(*epoch);
+    if (m == merges_.end()) return true;
+    *id += m->second.kf_offset;
+    *scale *= m->second.S.s;
+    *epoch = m->second.into;
+  }
+  return false;
+}
+
+double Mapper::final_epoch_scale(uint32_t epoch) const {
+  int id = 0;
+  double scale = 1.0;
+  return resolve_merges(&epoch, &id, &scale) ? scale : 1.0;
+}
+
+std::vector<uint32_t> Mapper::kept_epochs() const {
+  std::vector<uint32_t> out;
+  for (const auto& k : kept_) out.push_back(k->epoch);
+  return out;
+}
+
 bool Mapper::final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const {
-  if (epoch != epoch_) return false;
+  // Through the merges to the map that holds the keyframe now: the current one or a kept one.
+  double scale = 1.0;
+  if (!resolve_merges(&epoch, &id, &scale)) return false;
+  const Map* map = epoch == epoch_ ? &map_ : nullptr;
+  const std::unordered_map<int, Trail>* trail = &trail_;
+  for (const auto& k : kept_) {
+    if (map == nullptr && k->epoch == epoch) {
+      map = &k->map;
+      trail = &k->trail;
+    }
+  }
+  if (map == nullptr) return false;
   Pose T_id_cur;  // pose of keyframe `id` relative to the keyframe reached so far
   int cur = id;
-  for (int hops = 0; hops <= static_cast<int>(trail_.size()); ++hops) {
-    if (const auto k = map_.keyframes.find(cur); k != map_.keyframes.end()) {
+  for (int hops = 0; hops <= static_cast<int>(trail->size()); ++hops) {
+    if (const auto k = map->keyframes.find(cur); k != map->keyframes.end()) {
       *T_cam_world = T_id_cur * k->second.T_cam_world;
       return true;
     }
-    const auto t = trail_.find(cur);
-    if (t == trail_.end()) return false;
+    const auto t = trail->find(cur);
+    if (t == trail->end()) return false;
     T_id_cur = T_id_cur * t->second.T_kf_parent;
     cur = t->second.parent;
   }
@@ -682,36 +723,35 @@ void Mapper::cap_points() {
   stats_.points_culled += static_cast<int>(excess);
 }
 
-void Mapper::publish() {
+std::shared_ptr<MapSnapshot> Mapper::build_snapshot(const Map& m, uint32_t epoch) const {
   auto s = std::make_shared<MapSnapshot>();
-  s->version = ++version_;
-  s->epoch = epoch_;
+  s->epoch = epoch;
   s->binary = fparams_.binary();
   std::unordered_map<int, int> kf_index;
-  for (const auto& [id, k] : map_.keyframes) {
+  for (const auto& [id, k] : m.keyframes) {
     kf_index[id] = static_cast<int>(s->kf_ids.size());
     s->kf_ids.push_back(id);
     s->kf_pose.push_back(k.T_cam_world);
     // Points of the keyframe that are well established (ORB-SLAM: >= 3 observations once the
     // map has more than 2 keyframes): the tracker's keyframe rule compares against these.
-    const size_t min_obs = map_.keyframes.size() > 2 ? 3 : 2;
+    const size_t min_obs = m.keyframes.size() > 2 ? 3 : 2;
     int n = 0;
     for (int64_t pid : k.point_of) {
       if (pid < 0) continue;
-      auto it = map_.points.find(pid);
-      n += it != map_.points.end() && it->second.obs.size() >= min_obs;
+      auto it = m.points.find(pid);
+      n += it != m.points.end() && it->second.obs.size() >= min_obs;
     }
     s->kf_points.push_back(n);
   }
   const int cols = s->binary ? 32 : 128;
   const int type = s->binary ? CV_8U : CV_32F;
   int rows = 0;
-  for (const auto& kv : map_.points) rows += kv.second.valid && kv.second.obs.size() >= 2;
+  for (const auto& kv : m.points) rows += kv.second.valid && kv.second.obs.size() >= 2;
   s->desc.create(std::max(1, rows), cols, type);
   s->obs_start.push_back(0);
   s->row_of.reserve(static_cast<size_t>(rows) * 2);
   s->kf_row_start.assign(s->kf_ids.size() + 1, 0);
-  for (const auto& [pid, p] : map_.points) {
+  for (const auto& [pid, p] : m.points) {
     if (!p.valid || p.obs.size() < 2) continue;
     const int r = static_cast<int>(s->ids.size());
     s->ids.push_back(pid);
@@ -738,20 +778,291 @@ void Mapper::publish() {
       s->kf_rows[size_t(fill[size_t(s->obs_kf[size_t(o)])]++)] = r;
     }
   }
-  if (places_) {
-    places_->retain(epoch_, [&](int id) { return map_.keyframes.count(id) > 0; });
-    s->places = places_->build();
-  }
   if (!s->binary && rows > 0) {
     // The paper's KD-tree over the reference features (FLANN, randomised k-d trees).
     s->kdtree = std::make_unique<cv::flann::Index>(s->desc.rowRange(0, rows),
                                                    cv::flann::KDTreeIndexParams(4));
   }
+  return s;
+}
+
+void Mapper::publish() {
+  std::shared_ptr<MapSnapshot> s = build_snapshot(map_, epoch_);
+  s->version = ++version_;
+  if (places_) {
+    places_->retain(epoch_, [&](int id) { return map_.keyframes.count(id) > 0; });
+    s->places = places_->build();
+  }
+  for (const auto& k : kept_) s->kept.push_back(k->snapshot);
+  s->merged_from = last_merged_from_;
+  s->merge_scale = last_merge_.S.s;
+  s->merge_R = last_merge_.S.R;
+  s->merge_t = last_merge_.S.t;
+  s->merge_point_offset = last_merge_.point_offset;
   if (link_->debug_recent_invalid.load(std::memory_order_relaxed) > 0) fill_recent_invalid(*s);
   link_->keyframes.store(static_cast<int>(map_.keyframes.size()));
-  link_->points.store(rows);
+  link_->points.store(s->rows());
   link_->index.publish(std::move(s));
   ++stats_.snapshots;
+}
+
+void Mapper::start_epoch(uint32_t epoch) {
+  // A reset candidate: the current map is kept frozen (or dropped when tiny) and an empty map
+  // of the new epoch waits for the tracker's initialization.
+  freeze_current();
+  map_ = Map();
+  trail_.clear();
+  if (updater_) updater_->reset();
+  epoch_ = epoch;
+  last_merged_from_ = -1;
+  link_->keyframes.store(0);
+  link_->points.store(0);
+  // With earlier maps kept, an empty snapshot of the new epoch carries them to the tracker,
+  // which tries to relocalize into them while it initializes.
+  if (!kept_.empty()) publish();
+}
+
+void Mapper::freeze_current() {
+  // Keep the current map (more than 2 keyframes, max_epochs > 0, place recognition: ORB with a
+  // vocabulary), frozen, with its places and last snapshot; the oldest kept map goes above
+  // max_epochs. Otherwise the map is dropped.
+  const bool keep = places_ != nullptr && params_.max_epochs > 0 && map_.keyframes.size() > 2;
+  if (!keep) {
+    if (places_) places_->retain(epoch_, [](int) { return false; });
+    return;
+  }
+  auto k = std::make_unique<KeptMap>();
+  k->epoch = epoch_;
+  std::shared_ptr<MapSnapshot> snap = build_snapshot(map_, epoch_);
+  if (places_) {
+    places_->retain(epoch_, [&](int id) { return map_.keyframes.count(id) > 0; });
+    snap->places = places_->build();
+  }
+  k->snapshot = std::move(snap);
+  k->map = std::move(map_);
+  k->trail = std::move(trail_);
+  kept_.push_back(std::move(k));
+  ++stats_.maps_kept;
+  RDSLAM_LOG_INFO("mapper: map epoch %u kept (%zu keyframes, %zu points; %zu earlier maps)", epoch_,
+                  kept_.back()->map.keyframes.size(), kept_.back()->map.points.size(),
+                  kept_.size());
+  while (static_cast<int>(kept_.size()) > params_.max_epochs) {
+    const uint32_t e = kept_.front()->epoch;
+    if (places_) places_->retain(e, [](int) { return false; });
+    kept_.erase(kept_.begin());
+    ++stats_.maps_dropped;
+  }
+}
+
+bool Mapper::reactivate(uint32_t epoch) {
+  // The tracker relocalized into kept map `epoch`: it becomes the current map again.
+  auto it = std::find_if(kept_.begin(), kept_.end(),
+                         [epoch](const std::unique_ptr<KeptMap>& k) { return k->epoch == epoch; });
+  if (it == kept_.end()) return false;
+  std::unique_ptr<KeptMap> k = std::move(*it);
+  kept_.erase(it);
+  freeze_current();
+  map_ = std::move(k->map);
+  trail_ = std::move(k->trail);
+  epoch_ = epoch;
+  last_merged_from_ = -1;
+  if (updater_) updater_->reset();
+  ++stats_.maps_reactivated;
+  RDSLAM_LOG_INFO("mapper: map epoch %u is current again", epoch);
+  return true;
+}
+
+bool Mapper::try_merge(int kf, int* merged_kf) {
+  // Place recognition of the new keyframe in each kept map (newest first), then geometric
+  // verification; the first verified candidate is merged.
+  const Keyframe* A = map_.keyframe(kf);
+  if (!places_ || A == nullptr) return false;
+  link_->vocabulary->transform(A->features, bow_, voc_scratch_);
+  const std::shared_ptr<const KeyframeDatabase> db = places_->build();
+  for (size_t i = kept_.size(); i-- > 0;) {
+    PlaceQueryParams qp;
+    qp.max_candidates = 3;
+    qp.epoch = kept_[i]->epoch;
+    PlaceCandidate cands[3];
+    const int n = db->query(bow_, qp, merge_query_, cands, 3);
+    for (int c = 0; c < n; ++c) {
+      const Keyframe* B = kept_[i]->map.keyframe(cands[c].keyframe);
+      if (B == nullptr) continue;
+      ++stats_.merge_attempts;
+      Sim3 S;
+      std::vector<std::pair<int, int64_t>> matches;
+      if (!verify_merge(*A, *B, kept_[i]->map, &S, &matches)) continue;
+      merge_into(i, S, matches, kf, merged_kf);
+      return true;
+    }
+  }
+  return false;
+}
+
+bool Mapper::verify_merge(const Keyframe& A, const Keyframe& B, const Map& target, Sim3* S,
+                          std::vector<std::pair<int, int64_t>>* matches) const {
+  // 1. Descriptor matches between A's and B's features that have map points (2-NN with the
+  //    relocalization rule, one-to-one), as 3D-3D pairs; 2. Sim(3) RANSAC; 3. the points of B
+  //    and its covisible keyframes projected into A under S must match enough features.
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kRelocalize, bin);
+  std::vector<int> b_feats;
+  for (int i = 0; i < B.features.count; ++i) {
+    const int64_t pid = B.point_of[size_t(i)];
+    const auto it = pid >= 0 ? target.points.find(pid) : target.points.end();
+    if (it != target.points.end() && it->second.valid) b_feats.push_back(i);
+  }
+  std::vector<Sim3Pair, Eigen::aligned_allocator<Sim3Pair>> pairs;
+  std::vector<int> pair_feat;
+  std::unordered_map<int, std::pair<double, size_t>> claimed;  // B feature -> (distance, pair)
+  for (int j = 0; j < A.features.count; ++j) {
+    const int64_t pid = A.point_of[size_t(j)];
+    const auto pa = pid >= 0 ? map_.points.find(pid) : map_.points.end();
+    if (pa == map_.points.end() || !pa->second.valid) continue;
+    const BestTwo best = best_of(A.features.desc_ptr(j), B.features, b_feats.data(),
+                                 static_cast<int>(b_feats.size()), bin);
+    if (!rule.accepts(best)) continue;
+    const int i = best.index;
+    const MapPoint& pb = target.points.at(B.point_of[size_t(i)]);
+    Sim3Pair q;
+    q.a = pa->second.p_world;
+    q.b = pb.p_world;
+    q.xa = Eigen::Vector2d(A.features.un[size_t(j)].x, A.features.un[size_t(j)].y);
+    q.xb = Eigen::Vector2d(B.features.un[size_t(i)].x, B.features.un[size_t(i)].y);
+    q.sa = A.features.scale[size_t(j)];
+    q.sb = B.features.scale[size_t(i)];
+    const auto c = claimed.find(i);
+    if (c != claimed.end()) {
+      if (c->second.first <= best.d1) continue;
+      pairs[c->second.second] = q;  // a closer feature of A takes B's feature
+      pair_feat[c->second.second] = j;
+      c->second.first = best.d1;
+      continue;
+    }
+    claimed[i] = {best.d1, pairs.size()};
+    pairs.push_back(q);
+    pair_feat.push_back(j);
+  }
+  Sim3RansacParams rp;
+  rp.min_inliers = params_.merge_min_inliers;
+  std::vector<uint8_t> inl;
+  const int n_inl = estimate_sim3(pairs, A.T_cam_world, B.T_cam_world, K_, rp, S, &inl);
+  if (n_inl < params_.merge_min_inliers) return false;
+  const int m = match_by_projection(A, B, target, *S, matches);
+  RDSLAM_LOG_INFO(
+      "mapper: merge check of keyframe %d (epoch %u) with an earlier map's keyframe "
+      "%d: %zu pairs, %d Sim(3) inliers (scale %.3f), %d matched by projection",
+      A.id, epoch_, B.id, pairs.size(), n_inl, S->s, m);
+  return m >= params_.merge_min_matches;
+}
+
+int Mapper::match_by_projection(const Keyframe& A, const Keyframe& B, const Map& target,
+                                const Sim3& S,
+                                std::vector<std::pair<int, int64_t>>* matches) const {
+  // The valid points of B and of its 10 most covisible keyframes (target map), projected into
+  // A (its pose in the target frame under S), matched in a radius of 5 px x the predicted
+  // level's scale by descriptor (MatchPurpose::kFuse), one point per feature of A.
+  const bool bin = fparams_.binary();
+  const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kFuse, bin);
+  const Pose Ta = S.camera(A.T_cam_world);
+  const Eigen::Vector3d ca = Ta.centre();
+  std::vector<int> kfs{B.id};
+  for (const auto& [n, kid] : target.covisible(B.id)) {
+    if (kfs.size() >= 11) break;
+    kfs.push_back(kid);
+  }
+  std::unordered_set<int64_t> seen;
+  std::unordered_map<int, std::pair<double, int64_t>> best_of_feat;
+  std::vector<int> cand(512);
+  const double log_sf = std::log(std::max(1.0001, fparams_.scale_factor));
+  for (int kid : kfs) {
+    const auto k = target.keyframes.find(kid);
+    if (k == target.keyframes.end()) continue;
+    for (int64_t pid : k->second.point_of) {
+      if (pid < 0 || !seen.insert(pid).second) continue;
+      const auto it = target.points.find(pid);
+      if (it == target.points.end() || !it->second.valid) continue;
+      const MapPoint& p = it->second;
+      const Eigen::Vector3d pc = Ta * p.p_world;
+      if (pc.z() <= 1e-6) continue;
+      const Eigen::Vector2d uv = K_.project(pc);
+      if (uv.x() < 0 || uv.y() < 0 || uv.x() >= A.features.width || uv.y() >= A.features.height) {
+        continue;
+      }
+      const double dist = (ca - p.p_world).norm();
+      int lvl = 0;
+      if (bin) lvl = predict_level(p.max_dist, dist, log_sf, std::max(1, fparams_.levels));
+      const double r = 5.0 * std::pow(fparams_.scale_factor, lvl);
+      const int n = A.features.radius_search(float(uv.x()), float(uv.y()), float(r),
+                                             bin ? lvl - 1 : -1, bin ? lvl + 1 : 1 << 20,
+                                             cand.data(), static_cast<int>(cand.size()));
+      const BestTwo best = best_of(p.desc.data(), A.features, cand.data(), n, bin);
+      if (!rule.accepts(best)) continue;
+      auto [slot, fresh] = best_of_feat.emplace(best.index, std::make_pair(best.d1, pid));
+      if (!fresh && best.d1 < slot->second.first) slot->second = {best.d1, pid};
+    }
+  }
+  matches->clear();
+  for (const auto& [j, dp] : best_of_feat) matches->emplace_back(j, dp.second);
+  std::sort(matches->begin(), matches->end());
+  return static_cast<int>(matches->size());
+}
+
+void Mapper::merge_into(size_t kept_index, const Sim3& S,
+                        const std::vector<std::pair<int, int64_t>>& matches, int kf,
+                        int* merged_kf) {
+  // The current map moves into kept map `kept_index` under S (core/map_merge.h); the features
+  // of keyframe `kf` matched by projection fuse their points with the earlier map's (or, without
+  // a point, observe the earlier map's point). The merged map keeps the earlier epoch.
+  std::unique_ptr<KeptMap> k = std::move(kept_[kept_index]);
+  kept_.erase(kept_.begin() + static_cast<long>(kept_index));
+  const uint32_t from = epoch_;
+  const Keyframe& A = map_.keyframes.at(kf);
+  std::vector<std::pair<int64_t, int64_t>> fuse;
+  std::vector<std::pair<int, int64_t>> observe;
+  for (const auto& [j, pid] : matches) {
+    const int64_t own = A.point_of[size_t(j)];
+    if (own >= 0) {
+      fuse.emplace_back(own, pid);
+    } else {
+      observe.emplace_back(j, pid);
+    }
+  }
+  if (places_) places_->retain(from, [](int) { return false; });
+  // Trails of removed keyframes follow (relative poses: translation scaled by s).
+  for (const auto& [kid, t] : trail_) {
+    // Ids shift by the target's next keyframe id (merge_maps' offset, read before it).
+    Trail moved = t;
+    moved.parent += k->map.next_kf_id;
+    moved.T_kf_parent.t *= S.s;
+    k->trail[kid + k->map.next_kf_id] = moved;
+  }
+  int kf_offset = 0;
+  int64_t point_offset = 0;
+  const int fused = merge_maps(k->map, std::move(map_), S, fuse, &kf_offset, &point_offset);
+  for (const auto& [j, pid] : observe) k->map.add_observation(pid, kf + kf_offset, j);
+  map_ = std::move(k->map);
+  trail_ = std::move(k->trail);
+  epoch_ = k->epoch;
+  if (updater_) updater_->reset();
+  MergeRecord rec;
+  rec.into = epoch_;
+  rec.S = S;
+  rec.kf_offset = kf_offset;
+  rec.point_offset = point_offset;
+  merges_[from] = rec;
+  last_merge_ = rec;
+  last_merged_from_ = from;
+  for (const auto& [id, kfr] : map_.keyframes) {
+    if (id >= kf_offset) add_place(id);
+  }
+  *merged_kf = kf + kf_offset;
+  ++stats_.merges;
+  link_->merges.fetch_add(1, std::memory_order_relaxed);
+  RDSLAM_LOG_INFO(
+      "mapper: map epoch %u merged into epoch %u (scale %.3f; %d points fused, %zu "
+      "observations added)",
+      from, epoch_, S.s, fused, observe.size());
 }
 
 void Mapper::fill_recent_invalid(MapSnapshot& s) {

@@ -27,6 +27,23 @@
 //     covisible keyframes, `ba.window` keyframes in all;
 //  8. culling (bounded map), then publish.
 //
+// Recovery (map epochs, docs/slam.md "Recovery"): a reset candidate (the tracker was LOST too
+// long, core/tracker.h) starts a new map epoch. The current map is kept, frozen (no bundle
+// adjustment, no updating, no culling), when it has more than 2 keyframes: at most
+// `max_epochs` earlier maps are kept (the oldest goes first), each within the caps, so the
+// mapper holds at most (max_epochs + 1) x (max_keyframes, max_points). Their keyframes stay in
+// the place-recognition database and their last snapshots travel in every snapshot
+// (MapSnapshot::kept), so the tracker can relocalize into them; a keyframe candidate of a kept
+// epoch (the tracker relocalized there) makes that map current again (the current one is kept
+// or, with at most 2 keyframes, dropped). After step 6 of a keyframe of the current map, each
+// kept map is searched for it (place recognition in that epoch, then descriptor matches of
+// their points, a Sim(3) RANSAC with at least `merge_min_inliers`, then at least
+// `merge_min_matches` of the keyframe's features matched by projecting the candidate's and its
+// covisible keyframes' points); on success the current map is merged into the kept one
+// (core/map_merge.h: transformed into its frame, ids shifted, duplicates fused), which becomes
+// the current map with the kept map's epoch (subscribers see pose_t.map_epoch return to the
+// earlier map's, whose frame the poses continue in), then local BA around the seam.
+//
 // Culling, in this order:
 //  - recent points: a point seen by fewer than 2 keyframes, or still by at most 2 at the second
 //    or third keyframe after the one that created it, is removed (ORB-SLAM's rule; monocular
@@ -43,6 +60,7 @@
 #pragma once
 
 #include <deque>
+#include <map>
 #include <memory>
 #include <unordered_map>
 #include <unordered_set>
@@ -54,6 +72,7 @@
 #include "core/keyframe.h"
 #include "core/keyframe_database.h"
 #include "core/map.h"
+#include "core/map_merge.h"
 #include "core/map_updater.h"
 #include "core/matching.h"
 #include "core/params.h"
@@ -67,6 +86,9 @@ struct MapperParams {
   int max_points = 20000;           // cap
   double min_parallax_deg = 1.0;    // new points need this triangulation angle
   double redundant_fraction = 0.9;  // keyframe culling (Sec. 4's 90%)
+  int max_epochs = 2;               // recovery: earlier maps kept frozen (0: none)
+  int merge_min_inliers = 20;       // recovery: Sim(3) RANSAC inliers to merge
+  int merge_min_matches = 50;       // recovery: features matched by projection to merge
   BundleAdjustmentParams ba;
 
   void visit(ParamVisitor& v);
@@ -85,6 +107,9 @@ struct MapperStats {
   int points_counter_discarded = 0;  // of points_invalidated: by the missed/moved counters
   int points_pruned = 0;        // of points_culled: erased by the updater (dynamic.prune_unmatched)
   int points_rejected_new = 0;  // triangulated but not seen again (dynamic.check_new_points)
+  int maps_started = 0;         // initializations (map epochs begun)
+  int maps_kept = 0, maps_dropped = 0, maps_reactivated = 0;  // recovery (earlier maps)
+  int merges = 0, merge_attempts = 0;                         // recovery: Sim(3) merges
 };
 
 class Mapper {
@@ -115,6 +140,12 @@ class Mapper {
   // mapper thread is not running (before the first step(), after the last).
   void set_keep_trail(bool on) { keep_trail_ = on; }
   bool final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const;
+  // The scale by which poses of map epoch `epoch` were multiplied by the merges that moved that
+  // map into the one that holds it now (1 when never merged): a frame's pose relative to its
+  // reference keyframe (TrackResult::p_ref_cam) is scaled by it before final_keyframe_pose.
+  double final_epoch_scale(uint32_t epoch) const;
+  // The epochs of the earlier maps kept (oldest first); tests and diagnostics.
+  std::vector<uint32_t> kept_epochs() const;
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
   // Diagnostics: every Algorithm 1 verdict (core/map_updater.h CheckRecord); tests only.
@@ -158,6 +189,20 @@ class Mapper {
   void cull_unobserved_points();
   void cap_points();
   void publish();
+  std::shared_ptr<MapSnapshot> build_snapshot(const Map& m, uint32_t epoch) const;
+  // Recovery (see the header comment).
+  void start_epoch(uint32_t epoch);
+  void freeze_current();
+  bool reactivate(uint32_t epoch);
+  bool try_merge(int kf, int* merged_kf);
+  bool verify_merge(const Keyframe& A, const Keyframe& B, const Map& target, Sim3* S,
+                    std::vector<std::pair<int, int64_t>>* matches) const;
+  int match_by_projection(const Keyframe& A, const Keyframe& B, const Map& target, const Sim3& S,
+                          std::vector<std::pair<int, int64_t>>* matches) const;
+  void merge_into(size_t kept_index, const Sim3& S,
+                  const std::vector<std::pair<int, int64_t>>& matches, int kf, int* merged_kf);
+  // The map of `epoch` after following its merges: epoch, keyframe id and scale.
+  bool resolve_merges(uint32_t* epoch, int* id, double* scale) const;
   void add_place(int kf);  // place recognition: the keyframe's vector into the database
   void fill_recent_invalid(MapSnapshot& s);
 
@@ -185,6 +230,24 @@ class Mapper {
   };
   bool keep_trail_ = false;
   std::unordered_map<int, Trail> trail_;
+  // Recovery: earlier maps kept frozen (oldest first) and the merges done.
+  struct KeptMap {
+    uint32_t epoch = 0;
+    Map map;
+    std::unordered_map<int, Trail> trail;
+    std::shared_ptr<const MapSnapshot> snapshot;
+  };
+  std::vector<std::unique_ptr<KeptMap>> kept_;
+  struct MergeRecord {
+    uint32_t into = 0;
+    Sim3 S;
+    int kf_offset = 0;
+    int64_t point_offset = 0;
+  };
+  std::map<uint32_t, MergeRecord> merges_;  // by the epoch merged away
+  int64_t last_merged_from_ = -1;           // into the current map (MapSnapshot::merged_from)
+  MergeRecord last_merge_;
+  PlaceQueryScratch merge_query_;
   std::vector<InvalidationRecord>* inval_log_ = nullptr;
   // Debug output only (SlamLink::debug_recent_invalid > 0): points seen invalid at a publish,
   // oldest first, bounded; and which ids were already listed (this map epoch).

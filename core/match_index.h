@@ -57,6 +57,19 @@ struct MapSnapshot {
   // debug_recent_invalid of them; positions as when they were invalidated.
   std::vector<int64_t> invalid_ids;
   std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> invalid_p_world;
+  // Recovery (docs/slam.md, "Recovery"): the frozen earlier maps (epochs) the mapper keeps,
+  // each as its last snapshot (with the keyframe database of its freeze), for relocalization
+  // of a LOST or re-initializing tracker into an earlier map; oldest first.
+  std::vector<std::shared_ptr<const MapSnapshot>> kept;
+  // The last merge into this map (core/map_merge.h), repeated by every later snapshot of it:
+  // the map of epoch `merged_from` (-1: none) was moved into this one by x' = s R x + t
+  // (merge_scale, merge_R, merge_t) with its point ids shifted by merge_point_offset. A tracker
+  // still in epoch merged_from follows it (Tracker::follow_merge).
+  int64_t merged_from = -1;
+  double merge_scale = 1.0;
+  Eigen::Matrix3d merge_R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d merge_t = Eigen::Vector3d::Zero();
+  int64_t merge_point_offset = 0;
 
   int rows() const { return static_cast<int>(ids.size()); }
   int find(int64_t id) const {

@@ -41,6 +41,17 @@ int Relocalizer::match(const Features& f, const MapSnapshot& snap, uint32_t epoc
   return claim_rows(n, pairs);
 }
 
+int64_t Relocalizer::best_epoch(const Features& f, const KeyframeDatabase& places) {
+  if (!uses_places() || f.count == 0) return -1;
+  const int count = std::min(f.count, static_cast<int>(feat_node_.size()));
+  vocabulary_->transform(f.desc.data, f.desc.step[0], count, bow_, voc_scratch_, nullptr,
+                         params_.node_level, feat_node_.data());
+  PlaceQueryParams qp;
+  qp.max_candidates = 1;
+  const int n = places.query(bow_, qp, query_scratch_, cands_.data(), 1);
+  return n > 0 ? static_cast<int64_t>(cands_[0].epoch) : -1;
+}
+
 int Relocalizer::match_places(const Features& f, const MapSnapshot& snap, uint32_t epoch,
                               int* pairs, int cap) {
   if (!snap.places || snap.kf_row_start.size() != snap.kf_ids.size() + 1) return 0;

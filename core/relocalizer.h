@@ -47,6 +47,9 @@ class Relocalizer {
   // Writes (feature index, snapshot row) pairs into `pairs` (2 ints each, at most `cap` pairs)
   // and returns their number. Each snapshot row is used at most once.
   int match(const Features& f, const MapSnapshot& snap, uint32_t epoch, int* pairs, int cap);
+  // Recovery (several map epochs in `places`): the epoch of the keyframe that place recognition
+  // ranks first for the frame, over all epochs; -1 without a candidate or without places.
+  int64_t best_epoch(const Features& f, const KeyframeDatabase& places);
   // The place-recognition candidates of the last match() (ORB with a vocabulary).
   int candidate_count() const { return n_cands_; }
   const PlaceCandidate* candidates() const { return cands_.data(); }

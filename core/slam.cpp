@@ -7,6 +7,12 @@ namespace rdslam {
 
 namespace {
 
+// Keyframes the place-recognition database may hold: the current map and the kept earlier
+// ones (recovery), each within the keyframe cap; sizes the tracker's relocalization scratch.
+int places_capacity(const MapperParams& m) {
+  return m.max_keyframes * (1 + m.max_epochs);
+}
+
 double thread_cpu_ms() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
@@ -17,7 +23,7 @@ class TrackerStageImpl : public TrackerStage {
  public:
   TrackerStageImpl(const SlamParams& p, const CameraModel& cam, std::shared_ptr<SlamLink> link)
       : tracker_(p.tracker, p.features, p.mapper.ba, p.parsac, cam, std::move(link),
-                 p.mapper.max_points, p.mapper.max_keyframes) {}
+                 p.mapper.max_points, places_capacity(p.mapper)) {}
   TrackResult track(const Frame& frame) override {
     TrackResult r = tracker_.track(frame);
     if (debug_) tracker_.emit_debug_frame(frame, r);
@@ -44,6 +50,9 @@ class MapperStageImpl : public MapperStage {
   void set_keep_trail(bool on) override { mapper_.set_keep_trail(on); }
   bool final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const override {
     return mapper_.final_keyframe_pose(epoch, id, T_cam_world);
+  }
+  double final_epoch_scale(uint32_t epoch) const override {
+    return mapper_.final_epoch_scale(epoch);
   }
 
  private:
@@ -86,9 +95,10 @@ OfflineRun run_offline(FrameSource& source, const SlamParams& params, const Came
                        int max_frames, const std::function<void(const OfflineFrame&)>& on_frame) {
   auto link = make_slam_link(params, kCandidateSlots);
   Tracker tracker(params.tracker, params.features, params.mapper.ba, params.parsac, camera, link,
-                  params.mapper.max_points, params.mapper.max_keyframes);
+                  params.mapper.max_points, places_capacity(params.mapper));
   Mapper mapper(params.mapper, params.features, camera, link);
   mapper.set_change_detection(params.dynamic);
+  mapper.set_keep_trail(true);  // the final trajectory (an offline run is bounded)
   OfflineRun run;
   Frame frame;
   using Clock = std::chrono::steady_clock;
@@ -116,6 +126,23 @@ OfflineRun run_offline(FrameSource& source, const SlamParams& params, const Came
   run.tracker = tracker.stats();
   run.final_keyframes = static_cast<int>(mapper.map().keyframes.size());
   run.final_points = static_cast<int>(mapper.map().points.size());
+  for (const auto& f : run.frames) {
+    const TrackResult& r = f.result;
+    if (r.state != TrackingState::kTracking && r.state != TrackingState::kRelocalized) continue;
+    StampedPose sp;
+    sp.stamp_ns = f.stamp_ns;
+    sp.p_world_cam = r.p_world_cam;
+    sp.q_world_cam = r.q_world_cam;
+    Pose T_ref_world;
+    if (r.ref_keyframe >= 0 && mapper.final_keyframe_pose(r.epoch, r.ref_keyframe, &T_ref_world)) {
+      const Pose T_world_cam =
+          T_ref_world.inverse() *
+          Pose{r.q_ref_cam.toRotationMatrix(), r.p_ref_cam * mapper.final_epoch_scale(r.epoch)};
+      sp.q_world_cam = Eigen::Quaterniond(T_world_cam.R).normalized();
+      sp.p_world_cam = T_world_cam.t;
+    }
+    run.final_trajectory.push_back(sp);
+  }
   return run;
 }
 

@@ -23,6 +23,7 @@
 #include "core/mapper.h"
 #include "core/stages.h"
 #include "core/tracker.h"
+#include "core/trajectory.h"
 
 namespace rdslam {
 
@@ -63,6 +64,10 @@ struct OfflineRun {
   MapperStats mapper;
   TrackerStats tracker;
   int final_keyframes = 0, final_points = 0;
+  // The final trajectory (as the replay's, firmware_app/pipeline.h replay_trajectory): every
+  // tracked frame re-anchored on its reference keyframe's pose in the final map, through the
+  // merges of its map epoch (recovery); frames whose keyframe is gone keep their online pose.
+  Trajectory final_trajectory;
 };
 
 // Reads `source` to the end (or `max_frames`, 0 = all) through tracker and mapper in this

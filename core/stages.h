@@ -47,12 +47,16 @@ struct TrackResult {
   // `epoch`, and the frame's pose relative to it when tracked (camera -> reference keyframe);
   // -1 when the frame has none (not tracked, no keyframes yet). Evaluation re-anchors the
   // frame on the keyframe's final pose (MapperStage::final_keyframe_pose).
-  // `epoch` is the map's identity (rdslam.pose_t map_epoch): +1 at every map reset, after which
-  // the world frame and scale are the new map's.
+  // `epoch` is the map's identity (rdslam.pose_t map_epoch): a new number at every map reset,
+  // after which the world frame and scale are the new map's; an earlier map's number again
+  // when the tracker relocalizes into a kept earlier map or the current map is merged into it
+  // (then the poses continue in that map's frame).
   int ref_keyframe = -1;
   uint32_t epoch = 0;
   Eigen::Quaterniond q_ref_cam{1, 0, 0, 0};
   Eigen::Vector3d p_ref_cam{0, 0, 0};
+  // Recovery: maps merged into earlier ones so far (cumulative; docs/slam.md "Recovery").
+  int map_merges = 0;
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
@@ -82,6 +86,9 @@ class MapperStage {
   virtual bool final_keyframe_pose(uint32_t /*epoch*/, int /*id*/, Pose* /*T_cam_world*/) const {
     return false;
   }
+  // The scale applied to map epoch `epoch` by the merges that moved it into another map (1:
+  // none); the final trajectory scales a frame's TrackResult::p_ref_cam by it.
+  virtual double final_epoch_scale(uint32_t /*epoch*/) const { return 1.0; }
 };
 
 }  // namespace rdslam

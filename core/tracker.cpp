@@ -46,6 +46,9 @@ void TrackerParams::visit(ParamVisitor& v) {
           "max_keyframe_interval while the map is young");
   v.field("reset_after_lost_frames", reset_after_lost_frames, 1, 100000,
           "lost this long with <= 2 keyframes: re-initialize");
+  v.field("new_map_after_s", new_map_after_s, 0.0, 3600.0,
+          "recovery: lost this long (s) with any map: start a new map epoch, keeping the old map "
+          "for relocalization and merging (0: never)");
   v.field("prediction_max_scale", prediction_max_scale, 1.0, 100.0,
           "the motion prediction spans at most this many (at least 1/this) of the last motion's "
           "stamp intervals (frames dropped between tracked frames)");
@@ -147,7 +150,11 @@ void Tracker::refresh_snapshot() {
   if (v == snap_version_) return;
   snap_version_ = v;
   std::shared_ptr<const MapSnapshot> s = link_->index.acquire();
-  if (!s || s->epoch != epoch_) return;
+  if (!s) return;
+  if (s->epoch != epoch_) {
+    if (s->merged_from < 0 || static_cast<uint32_t>(s->merged_from) != epoch_) return;
+    follow_merge(*s);  // this map was merged into an earlier one: continue in its frame
+  }
   snap_ = std::move(s);  // the previous snapshot is freed by the mapper (MatchIndex::collect)
   if (static_cast<int>(row_stamp_.size()) < snap_->rows()) {
     row_stamp_.resize(static_cast<size_t>(snap_->rows()) * 2, -1);  // map above its cap
@@ -160,6 +167,27 @@ void Tracker::refresh_snapshot() {
     last_.row[i] = r;
     if (r >= 0) last_.p[i] = snap_->p_world[r];
   }
+}
+
+void Tracker::follow_merge(const MapSnapshot& s) {
+  // x' = c R x + t (core/map_merge.h Sim3): a camera pose T becomes (T.R R^T, c T.t - T.R R^T t),
+  // the motion between two frames keeps its rotation and scales its translation by c.
+  const double c = s.merge_scale;
+  auto move_pose = [&](Pose& T) {
+    const Eigen::Matrix3d Rn = T.R * s.merge_R.transpose();
+    T.t = c * T.t - Rn * s.merge_t;
+    T.R = Rn;
+  };
+  move_pose(last_.T);
+  for (int i = 0; i < last_.f.count; ++i) {
+    if (last_.pid[i] < 0) continue;
+    last_.pid[i] += s.merge_point_offset;
+    last_.p[i] = c * (s.merge_R * last_.p[i]) + s.merge_t;
+  }
+  velocity_.t *= c;
+  RDSLAM_LOG_INFO("tracker: map epoch %u merged into epoch %u: continuing in its frame", epoch_,
+                  s.epoch);
+  epoch_ = s.epoch;
 }
 
 int Tracker::match_motion(const Pose& T, double radius) {
@@ -400,9 +428,46 @@ int Tracker::drop_and_refit(Pose& T, int n, int inliers, bool* dropped_any) {
   return optimise(T);
 }
 
+std::shared_ptr<const MapSnapshot> Tracker::relocalization_map(uint32_t* epoch) {
+  // The current map, unless earlier maps are kept and place recognition over all epochs ranks
+  // a kept map's keyframe first.
+  *epoch = epoch_;
+  if (!has_kept_maps() || !snap_->places) return snap_;
+  const int64_t best = reloc_.best_epoch(cur_.f, *snap_->places);
+  if (best < 0 || static_cast<uint32_t>(best) == epoch_) return snap_;
+  for (const auto& k : snap_->kept) {
+    if (k->epoch != static_cast<uint32_t>(best)) continue;
+    *epoch = k->epoch;
+    return k;
+  }
+  return snap_;
+}
+
 bool Tracker::relocalize() {
-  if (!snap_ || snap_->rows() < params_.reloc_min_inliers) return false;
-  const int n = reloc_.match(cur_.f, *snap_, epoch_, reloc_pairs_.data(),
+  uint32_t epoch = epoch_;
+  std::shared_ptr<const MapSnapshot> map = relocalization_map(&epoch);
+  if (!map || map->rows() < params_.reloc_min_inliers) return false;
+  if (static_cast<int>(row_stamp_.size()) < map->rows()) {
+    row_stamp_.resize(static_cast<size_t>(map->rows()) * 2, -1);  // map above its cap
+    row_rejected_.resize(row_stamp_.size(), -1);
+  }
+  // The map tried is the active one while relocalizing (projection search); restored on failure.
+  std::shared_ptr<const MapSnapshot> current = snap_;
+  snap_ = std::move(map);
+  if (!relocalize_in(epoch)) {
+    snap_ = std::move(current);
+    return false;
+  }
+  if (epoch != epoch_) {
+    RDSLAM_LOG_INFO("tracker: relocalized in the kept map of epoch %u (was epoch %u)", epoch,
+                    epoch_);
+    epoch_ = epoch;
+  }
+  return true;
+}
+
+bool Tracker::relocalize_in(uint32_t epoch) {
+  const int n = reloc_.match(cur_.f, *snap_, epoch, reloc_pairs_.data(),
                              static_cast<int>(reloc_pairs_.size() / 2));
   if (n < params_.reloc_min_matches) return false;
   // reloc_pairs_ holds (feature, snapshot row) pairs.
@@ -480,7 +545,8 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
 void Tracker::reset_map() {
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;
-  ++epoch_;
+  const uint32_t old_epoch = epoch_;
+  epoch_ = ++max_epoch_;  // never an earlier map's number (they may be kept)
   slot->kind = KeyframeCandidate::Kind::kReset;
   slot->epoch = epoch_;
   link_->candidates.commit();
@@ -490,7 +556,8 @@ void Tracker::reset_map() {
   have_last_ = false;
   state_ = TrackingState::kInitializing;
   lost_frames_ = 0;
-  RDSLAM_LOG_WARN("tracker: lost with a map of <= 2 keyframes: re-initializing");
+  RDSLAM_LOG_WARN("tracker: lost (map epoch %u): re-initializing a new map, epoch %u", old_epoch,
+                  epoch_);
 }
 
 void Tracker::maybe_send_keyframe(const Frame& frame) {
@@ -619,6 +686,7 @@ void Tracker::fill_result(TrackResult& r, bool found) const {
   r.invalidated_points = link_->invalidated_points.load(std::memory_order_relaxed);
   r.mapper_wait_ms = wait_ms_;
   r.epoch = epoch_;
+  r.map_merges = link_->merges.load(std::memory_order_relaxed);
   r.ref_keyframe = ref_kf_id_;  // -1 unless this frame's pose was found (reset per frame)
   const Pose T_ref_cam = T_cam_ref_.inverse();
   r.q_ref_cam = Eigen::Quaterniond(T_ref_cam.R).normalized();
@@ -632,7 +700,16 @@ TrackResult Tracker::track(const Frame& frame) {
   ref_kf_id_ = -1;
   extract(frame);
   bool found = false;
-  if (state_ == TrackingState::kInitializing) {
+  if (state_ == TrackingState::kInitializing && has_kept_maps() && relocalize()) {
+    // Recovery: a new map is initializing, but the frame was found in a kept earlier map.
+    initializer_.reset();
+    state_ = TrackingState::kRelocalized;
+    velocity_ = Pose();
+    velocity_dt_ns_ = 0;
+    lost_frames_ = 0;
+    found = true;
+    maybe_send_keyframe(frame);
+  } else if (state_ == TrackingState::kInitializing) {
     found = track_initializing(frame);  // start_from_init hands this frame to the mapper itself
     if (found) {
       ref_kf_id_ = 1;  // this frame is the new map's second keyframe
@@ -760,6 +837,7 @@ bool Tracker::update_state(const Pose& T, int inl) {
     state_ = TrackingState::kLost;
     have_last_ = false;
     lost_frames_ = 1;
+    lost_since_ns_ = cur_.stamp_ns;
     return false;
   }
   cur_.T = T;
@@ -771,8 +849,9 @@ bool Tracker::update_state(const Pose& T, int inl) {
 }
 
 bool Tracker::handle_lost() {
-  // LOST: relocalization against the map (Sec. 3); with a map of at most 2 keyframes, lost for
-  // too long, back to INITIALIZING.
+  // LOST: relocalization against the map (Sec. 3) or a kept earlier map; lost for too long
+  // (reset_after_lost_frames with a map of at most 2 keyframes, new_map_after_s with any),
+  // INITIALIZING a new map epoch.
   if (relocalize()) {
     state_ = TrackingState::kRelocalized;
     velocity_ = Pose();
@@ -781,9 +860,13 @@ bool Tracker::handle_lost() {
     return true;
   }
   ++lost_frames_;
-  if (lost_frames_ > params_.reset_after_lost_frames && (!snap_ || snap_->kf_ids.size() <= 2)) {
-    reset_map();
-  }
+  // A tiny map after reset_after_lost_frames; any map after new_map_after_s (recovery: the
+  // mapper keeps a map of more than 2 keyframes for relocalization and merging).
+  const bool tiny = !snap_ || snap_->kf_ids.size() <= 2;
+  const bool too_long =
+      params_.new_map_after_s > 0.0 &&
+      static_cast<double>(cur_.stamp_ns - lost_since_ns_) >= params_.new_map_after_s * 1e9;
+  if ((lost_frames_ > params_.reset_after_lost_frames && tiny) || too_long) reset_map();
   return false;
 }
 

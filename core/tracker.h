@@ -6,7 +6,12 @@
 // State machine (published with every pose):
 //   INITIALIZING --two-view init--> TRACKING --too few inliers--> LOST
 //   LOST --relocalization against the map--> RELOCALIZED (one frame) --> TRACKING
-//   LOST for `reset_after_lost_frames` with a map of at most 2 keyframes --> INITIALIZING
+//   LOST for `reset_after_lost_frames` with a map of at most 2 keyframes, or for
+//   `new_map_after_s` seconds (frame stamps) with any map --> INITIALIZING a new map epoch
+//   (recovery, docs/slam.md: the mapper keeps a map of more than 2 keyframes frozen; while LOST
+//   or INITIALIZING, relocalization also searches the kept earlier maps and, when it succeeds
+//   in one, the tracker continues in that map's epoch; when the mapper merges the current map
+//   into an earlier one, follow_merge() moves the tracker's state into the earlier map's frame)
 // A pose is published as TRACKING/RELOCALIZED only when at least `min_inliers` 2D-3D matches
 // support it after refinement.
 //
@@ -94,6 +99,9 @@ struct TrackerParams {
   int young_map_keyframes = 12;         // below this many keyframes the map is young
   int young_map_keyframe_interval = 5;  // max_keyframe_interval while the map is young
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
+  // Recovery: LOST this long (seconds of frame stamps since the first LOST frame, whatever the
+  // map's size) starts a new map epoch; 0 = never (only the tiny-map rule above).
+  double new_map_after_s = 1.0;
   // Time-aware constant velocity: the last motion spans the stamp interval between the last
   // two tracked frames; the prediction for a frame dt after the last tracked one applies it
   // scaled by dt / that interval (so a live pipeline that dropped frames predicts the whole
@@ -188,6 +196,14 @@ class Tracker {
   int flag_coherent_bins(double var);
   int drop_and_refit(Pose& T, int n, int inliers, bool* dropped_any);
   bool relocalize();
+  bool relocalize_in(uint32_t epoch);  // against snap_ (the map relocalization_map chose)
+  // Recovery: relocalization may pick a kept earlier map (MapSnapshot::kept) when place
+  // recognition ranks its keyframe first; `*epoch` and the returned snapshot are the map tried.
+  std::shared_ptr<const MapSnapshot> relocalization_map(uint32_t* epoch);
+  bool has_kept_maps() const { return snap_ && !snap_->kept.empty(); }
+  // The mapper merged this epoch's map into an earlier one (MapSnapshot::merged_from): the
+  // previous frame's pose, points and ids and the velocity move into the merged map's frame.
+  void follow_merge(const MapSnapshot& s);
   void maybe_send_keyframe(const Frame& frame);
   // Sec. 4 per-frame map updating: every SlamLink::observe_every_n tracked frames (not on a
   // frame just proposed as a keyframe, which the mapper checks anyway) the tracked features,
@@ -212,6 +228,8 @@ class Tracker {
 
   TrackingState state_ = TrackingState::kInitializing;
   uint32_t epoch_ = 0;
+  uint32_t max_epoch_ = 0;     // the largest epoch number used (a new map takes the next)
+  int64_t lost_since_ns_ = 0;  // stamp of the first LOST frame (TrackerParams::new_map_after_s)
   std::shared_ptr<const MapSnapshot> snap_;
   uint64_t snap_version_ = 0;
 

@@ -272,6 +272,62 @@ std::string dim(const char* name, double kLow) {
   return office(kXyzCamera, "", std::string("name: ") + name + "\nframes: 360\n" + keys);
 }
 
+// Recovery (issue 23): two rooms of one 6 x 12 m hall, split at y = 0 by a postered partition
+// with a 1.2 x 2.1 m door (closed, a textured panel, until frame 120). The camera walks from
+// room A (y < 0) towards the door looking north (+y), the light goes out in the doorway
+// (frames 95-140, 1.5 s: exposure 0.002, sensor noise only) while the door opens and the camera
+// walks through, so room B is unmapped when the light is back; it walks on into B, turns back
+// (still looking north, walking backwards) and leaves through the door into A again, where the
+// partition's A side it mapped first is in view. 450 frames at 30 fps.
+const char* kTwoRooms = R"(name: two_rooms
+frames: 450
+exposure: [[0, 1.0], [92, 1.0], [95, 0.002], [140, 0.002], [143, 1.0]]
+room:
+  size: [6.0, 12.0, 2.8]
+  panel: 0.9
+  floor_texture: aero1
+  floor_tile_m: 1.5
+  ceiling_texture: home
+trajectory:
+  type: path
+  target: [0.0, 40.0, 1.1]
+  path: [[0, -0.7, -3.2, 1.3], [55, 0.5, -3.0, 1.3], [100, 0.0, -0.6, 1.3], [130, 0.0, 0.8, 1.3],
+         [200, 0.0, 2.4, 1.3], [240, 0.0, 2.6, 1.3], [330, 0.0, 0.4, 1.3], [380, 0.0, -1.0, 1.3],
+         [449, 0.0, -2.6, 1.3]]
+  amplitude_m: [0.3, 0.0, 0.08]
+  period_s: [4.5, 1.0, 3.1]
+objects:
+  - {name: wall_west, shape: box, size: [2.4, 0.12, 2.8], xyz: [-1.8, 0.0, 0.0], texture: [building, fruits, stuff, stuff, stuff, stuff]}
+  - {name: wall_east, shape: box, size: [2.4, 0.12, 2.8], xyz: [1.8, 0.0, 0.0], texture: [leuvenA, smarties, stuff, stuff, stuff, stuff]}
+  - {name: lintel, shape: box, size: [1.2, 0.12, 0.7], xyz: [0.0, 0.0, 2.1], texture: [home, board, stuff, stuff, stuff, stuff]}
+  - {name: door, shape: plane, size: [1.2, 0.0, 2.1], xyz: [0.0, -0.07, 0.0], texture: butterfly, visible: [0, 120]}
+  - {name: crate_a, shape: box, size: [0.6, 0.5, 0.8], xyz: [-1.7, -1.5, 0.0], rpy_deg: [0, 0, 10], texture: [smarties, fruits, baboon, board, stuff, stuff]}
+  - {name: boxes_a, shape: box, size: [0.5, 0.5, 0.5], xyz: [1.8, -2.0, 0.0], texture: [messi5, building, fruits, leuvenA, board, stuff]}
+  - {name: crate_b, shape: box, size: [0.6, 0.5, 0.5], xyz: [1.0, 3.6, 0.0], rpy_deg: [0, 0, 15], texture: butterfly}
+  - {name: cabinet_b, shape: box, size: [0.8, 0.45, 1.6], xyz: [-1.7, 5.2, 0.0], texture: [fruits, leuvenA, fruits, fruits, home, home]}
+)";
+
+// Recovery (issue 23): static_xyz's office; the camera maps the north wall (frames 0-90), is
+// covered for 2 s (frames 100-160: exposure 0.002, sensor noise only) while it moves and turns to
+// the east wall, which it never saw (a shelf, boxes and a crate stand in front of it), and then
+// walks along it. 420 frames at 30 fps.
+std::string lost_unmapped() {
+  return office(R"(
+trajectory:
+  type: path
+  path: [[0, -0.4, -1.3, 1.3, 0.0, 2.5, 0.9], [90, 0.4, -1.3, 1.3, 0.0, 2.5, 0.9],
+         [160, 0.8, -0.8, 1.3, 3.0, -0.4, 1.1], [260, 0.8, 0.8, 1.3, 3.0, 1.2, 1.1],
+         [340, 0.8, -0.4, 1.3, 3.0, 0.0, 1.1], [419, 0.8, 0.4, 1.3, 3.0, 0.8, 1.1]]
+)",
+                R"(
+  - {name: shelf_e, shape: box, size: [0.45, 0.9, 1.7], xyz: [2.7, 0.1, 0.0], texture: [board, board, stuff, smarties, home, home]}
+  - {name: boxes_e, shape: box, size: [0.5, 0.5, 0.7], xyz: [2.2, -0.7, 0.0], rpy_deg: [0, 0, 20], texture: [fruits, leuvenA, baboon, building, board, stuff]}
+  - {name: crate_e, shape: box, size: [0.5, 0.4, 0.45], xyz: [2.1, 0.9, 0.0], rpy_deg: [0, 0, -10], texture: messi5}
+)",
+                "name: lost_unmapped\nframes: 420\n"
+                "exposure: [[0, 1.0], [97, 1.0], [100, 0.002], [160, 0.002], [163, 1.0]]\n");
+}
+
 const std::map<std::string, std::string>& table() {
   static const std::map<std::string, std::string> t = {
       {"static_xyz", office(kXyzCameraWithPause, "", "name: static_xyz\nframes: 300\nseed: 1\n")},
@@ -414,6 +470,8 @@ trajectory:
       {"dominant_object", dominant_object()},
       {"dim", dim("dim", 0.15)},
       {"dim_dark", dim("dim_dark", 0.08)},
+      {"two_rooms", kTwoRooms},
+      {"lost_unmapped", lost_unmapped()},
   };
   return t;
 }
@@ -435,7 +493,9 @@ const std::vector<std::string>& synth_scenario_names() {
                                                  "walking_xyz_radtan",
                                                  "walking_xyz_fisheye",
                                                  "dim",
-                                                 "dim_dark"};
+                                                 "dim_dark",
+                                                 "two_rooms",
+                                                 "lost_unmapped"};
   return names;
 }
 

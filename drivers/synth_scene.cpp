@@ -275,6 +275,25 @@ Eigen::Isometry3d eval_camera(const SynthScene& sc, const Shake& shake, double f
   } else if (tr.type == "xyz") {
     for (int i = 0; i < 3; ++i) p[i] += tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
     R = look_at(p, tr.target);
+  } else if (tr.type == "path") {
+    // Camera centre keys (frame, position), linear between them, plus the xyz sinusoids.
+    const double f = t * sc.fps;
+    const auto& k = tr.path;
+    const bool keyed_target = tr.path_target.size() == k.size();
+    Eigen::Vector3d target = keyed_target ? tr.path_target.front() : tr.target;
+    p = k.front().second;
+    for (size_t i = 0; i < k.size(); ++i) {
+      if (f < k[i].first) break;
+      p = k[i].second;
+      if (keyed_target) target = tr.path_target[i];
+      if (i + 1 < k.size() && f < k[i + 1].first) {
+        const double w = (f - k[i].first) / (k[i + 1].first - k[i].first);
+        p = (1.0 - w) * k[i].second + w * k[i + 1].second;
+        if (keyed_target) target = (1.0 - w) * tr.path_target[i] + w * tr.path_target[i + 1];
+      }
+    }
+    for (int i = 0; i < 3; ++i) p[i] += tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
+    R = look_at(p, target);
   } else if (tr.type == "halfsphere") {
     const double az = deg2rad(tr.azimuth_deg) * std::sin(2 * kPi * t / tr.azimuth_period_s);
     const double el = deg2rad(tr.elevation_deg) +
@@ -630,14 +649,33 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
   rd.known(tn, "trajectory",
            {"type", "center", "target", "amplitude_m", "period_s", "radius_m", "azimuth_deg",
             "elevation_deg", "elevation_amp_deg", "azimuth_period_s", "elevation_period_s",
-            "rpy_amp_deg", "speed_m_s", "shake", "pauses"});
+            "rpy_amp_deg", "speed_m_s", "shake", "pauses", "path"});
   SynthTrajectorySpec& tr = sc.trajectory;
   tr.type = rd.str(tn, "type", "xyz");
   if (tr.type != "xyz" && tr.type != "halfsphere" && tr.type != "rpy" && tr.type != "static" &&
-      tr.type != "forward")
+      tr.type != "forward" && tr.type != "path")
     fail(origin,
-         "trajectory.type: '" + tr.type + "'; allowed xyz, halfsphere, rpy, static, forward");
+         "trajectory.type: '" + tr.type + "'; allowed xyz, halfsphere, rpy, static, forward, path");
   const bool forward = tr.type == "forward";
+  if (tr.type == "path") {
+    tr.amplitude_m.setZero();  // no sinusoids unless asked for
+    if (!tn || !tn["path"] || !tn["path"].IsSequence() || tn["path"].size() == 0)
+      fail(origin, "trajectory.path: expected [[frame, x, y, z], ...] for type path");
+    const size_t width = tn["path"][0].IsSequence() ? tn["path"][0].size() : 0;
+    for (const auto& k : tn["path"]) {
+      if (!k.IsSequence() || k.size() != width || (width != 4 && width != 7))
+        fail(origin,
+             "trajectory.path: expected [[frame, x, y, z], ...] or [[frame, x, y, z, tx, ty, "
+             "tz], ...] (all keys alike)");
+      const double f = k[0].as<double>();
+      if (!tr.path.empty() && f <= tr.path.back().first)
+        fail(origin, "trajectory.path: frames must increase");
+      tr.path.emplace_back(
+          f, Eigen::Vector3d(k[1].as<double>(), k[2].as<double>(), k[3].as<double>()));
+      if (width == 7)
+        tr.path_target.emplace_back(k[4].as<double>(), k[5].as<double>(), k[6].as<double>());
+    }
+  }
   if (forward) {  // a straight drive unless offsets and swings are asked for
     tr.amplitude_m.setZero();
     tr.rpy_amp_deg.setZero();

@@ -128,7 +128,7 @@ struct SynthRenderOptions {
 };
 
 struct SynthTrajectorySpec {
-  std::string type = "xyz";              // xyz | halfsphere | rpy | static | forward
+  std::string type = "xyz";              // xyz | halfsphere | rpy | static | forward | path
   Eigen::Vector3d center{0, -1.3, 1.3};  // xyz/rpy/static: mean camera centre; forward: start
   Eigen::Vector3d target{0, 2.5, 1.0};   // the point the camera looks at (forward: sets the
                                          // direction of travel, target - center)
@@ -146,6 +146,11 @@ struct SynthTrajectorySpec {
   Eigen::Vector3d rpy_amp_deg{10, 10, 15};  // rpy, forward: roll pitch yaw amplitudes
   double shake = 1.0;                       // hand-held jitter scale (0 = tripod)
   std::vector<std::pair<int, int>> pauses;  // [first, last) frames where the camera stands still
+  // path: camera centre keys (frame, position), linear between them (held before the first and
+  // after the last), plus the xyz sinusoids (amplitude_m, default 0); looks at `target`, or at
+  // per-key look-at points (path_target, same length, interpolated alike) when the keys have them.
+  std::vector<std::pair<double, Eigen::Vector3d>> path;
+  std::vector<Eigen::Vector3d> path_target;
 };
 
 // Result of a surface query: which object's quad a world point lies on.

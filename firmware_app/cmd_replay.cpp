@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -225,6 +226,15 @@ int cmd_replay(int argc, char** argv) {
   }
   const int map_points = rr.frames.empty() ? 0 : rr.frames.back().result.map_points;
   const int keyframes = rr.frames.empty() ? 0 : rr.frames.back().result.keyframes;
+  std::set<uint32_t> epochs;  // of the tracked frames (recovery: new maps)
+  for (const auto& f : rr.frames) {
+    if (f.result.state == TrackingState::kTracking ||
+        f.result.state == TrackingState::kRelocalized) {
+      epochs.insert(f.result.epoch);
+    }
+  }
+  const size_t map_epochs = epochs.size();
+  const int map_merges = rr.frames.empty() ? 0 : rr.frames.back().result.map_merges;
 
   std::printf("\nrdslam replay %s (%s features)\n", uri.c_str(), cfg.slam.features.mode.c_str());
   std::printf("  %-26s %lld\n", "frames", static_cast<long long>(report.frames));
@@ -252,6 +262,9 @@ int cmd_replay(int argc, char** argv) {
               static_cast<unsigned long long>(st.dropped_capture),
               static_cast<unsigned long long>(st.dropped_tracker));
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
+  if (map_epochs > 1 || map_merges > 0) {
+    std::printf("  %-26s %zu epochs, %d merges\n", "maps", map_epochs, map_merges);
+  }
   if (report.ate_rmse_m) {
     std::printf("  %-26s %.4f m (%.3f%% of path)\n", "ATE rmse (Sim3)", *report.ate_rmse_m,
                 report.ate_rmse_pct_path.value_or(0.0));
@@ -358,6 +371,10 @@ int cmd_replay(int argc, char** argv) {
     w.value("tracker", static_cast<int64_t>(st.dropped_tracker));
     w.value("publish_overflows", static_cast<int64_t>(st.publish_overflows));
     w.end_object();
+    // Recovery (docs/slam.md): map epochs the tracked frames were in, and merges of a newer map
+    // into an earlier one.
+    w.value("map_epochs", static_cast<int64_t>(map_epochs));
+    w.value("map_merges", static_cast<int64_t>(map_merges));
     w.end_object();
     FILE* f = std::fopen(report_path.c_str(), "w");
     if (!f) throw std::runtime_error("cannot write " + report_path);

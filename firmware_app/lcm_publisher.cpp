@@ -85,6 +85,7 @@ void LcmPublisher::on_status(const PipelineStatus& s) {
   m.cpu_capture_s = s.cpu_s[kCaptureThread];
   m.cpu_tracker_s = s.cpu_s[kTrackerThread];
   m.cpu_mapper_s = s.cpu_s[kMapperThread];
+  m.map_epoch = static_cast<int64_t>(s.map_epoch);
   const int n = m.encode(buf_, 0, sizeof(buf_));
   if (send(params_.status_channel, buf_, n)) statuses_.fetch_add(1, std::memory_order_relaxed);
 }

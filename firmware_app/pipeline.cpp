@@ -424,6 +424,7 @@ void Pipeline::process_frame(uint32_t slot) {
   last_state_.store(static_cast<int>(r.state), std::memory_order_relaxed);
   map_points_.store(r.map_points, std::memory_order_relaxed);
   keyframes_.store(r.keyframes, std::memory_order_relaxed);
+  map_epoch_.store(r.epoch, std::memory_order_relaxed);
   invalidated_points_.store(r.invalidated_points, std::memory_order_relaxed);
   processed_.fetch_add(1, std::memory_order_release);
   pool_.release(slot);
@@ -545,6 +546,7 @@ void Pipeline::build_status(PipelineStatus& s, int64_t now_ns, bool final_report
   s.last_seq = last_seq_.load(std::memory_order_relaxed);
   s.map_points = map_points_.load(std::memory_order_relaxed);
   s.keyframes = keyframes_.load(std::memory_order_relaxed);
+  s.map_epoch = map_epoch_.load(std::memory_order_relaxed);
   s.invalidated_points = invalidated_points_.load(std::memory_order_relaxed);
   for (int i = 0; i < kPipelineThreads; ++i) s.cpu_s[i] = thread_cpu_s(i);
   prev_latency_ = lat;
@@ -666,8 +668,10 @@ Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_ma
     Pose T_ref_world;  // the reference keyframe in the final map
     if (final_map != nullptr && f.result.ref_keyframe >= 0 &&
         final_map->final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &T_ref_world)) {
-      const Pose T_world_cam =
-          T_ref_world.inverse() * Pose{f.result.q_ref_cam.toRotationMatrix(), f.result.p_ref_cam};
+      // A merged map epoch's relative poses are in its old scale (recovery).
+      const double scale = final_map->final_epoch_scale(f.result.epoch);
+      const Pose T_world_cam = T_ref_world.inverse() * Pose{f.result.q_ref_cam.toRotationMatrix(),
+                                                            f.result.p_ref_cam * scale};
       sp.q_world_cam = Eigen::Quaterniond(T_world_cam.R).normalized();
       sp.p_world_cam = T_world_cam.t;
     }

@@ -94,6 +94,7 @@ struct PipelineStatus {
   int keyframes = 0;
   int64_t invalidated_points = 0;
   double cpu_s[kPipelineThreads] = {0, 0, 0, 0};  // CPU time per thread since start
+  uint32_t map_epoch = 0;  // of the last processed frame (TrackResult::epoch)
 };
 
 // Live totals since start (any thread; each counter is exact, the set is not one instant).
@@ -246,6 +247,7 @@ class Pipeline {
   std::atomic<int> last_state_{0};
   std::atomic<int> map_points_{0};
   std::atomic<int> keyframes_{0};
+  std::atomic<uint32_t> map_epoch_{0};
   std::atomic<int64_t> invalidated_points_{0};
   std::atomic<bool> end_of_stream_{false};
 
