@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -70,6 +71,10 @@ struct Case {
   int last;          // last damaged frame
   std::vector<Count> counts;
 };
+
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << c.spec;
+}
 
 class FaultInjection : public ::testing::TestWithParam<Case> {};
 
