@@ -158,7 +158,6 @@ SourceStatus LcmImageSource::read(Frame& out, int timeout_ms) {
 }
 
 SourceStatus LcmImageSource::convert(const ImageMsgView& m, cv::Mat& out) {
-  const bool grey_out = info_.format == PixelFormat::kGray8;
   if (m.width != info_.width || m.height != info_.height) {
     if (!warned_) {
       RDSLAM_LOG_WARN("%s: image is %dx%d, configured %dx%d (camera.width/height); skipped",
@@ -167,8 +166,29 @@ SourceStatus LcmImageSource::convert(const ImageMsgView& m, cv::Mat& out) {
     }
     return SourceStatus::kFault;
   }
-  out.create(info_.height, info_.width, grey_out ? CV_8UC1 : CV_8UC3);  // no-op when sized
-  void* data = const_cast<uint8_t*>(m.data);                            // wrapped read-only below
+  switch (m.pixelformat) {
+    case bot_core::image_t::PIXEL_FORMAT_GRAY:
+    case bot_core::image_t::PIXEL_FORMAT_RGB:
+    case bot_core::image_t::PIXEL_FORMAT_BGR:
+    case bot_core::image_t::PIXEL_FORMAT_MJPEG:
+      break;
+    default:
+      if (!warned_) {
+        RDSLAM_LOG_WARN("%s: pixelformat %d is not supported (GRAY, RGB, BGR, MJPEG); skipped",
+                        info_.uri.c_str(), m.pixelformat);
+        warned_ = true;
+      }
+      return SourceStatus::kFault;
+  }
+  return convert_bot_core_image(m, info_.width, info_.height, info_.format, jpeg_, out);
+}
+
+SourceStatus convert_bot_core_image(const ImageMsgView& m, int width, int height,
+                                    PixelFormat format, MjpegDecoder& jpeg, cv::Mat& out) {
+  if (m.width != width || m.height != height) return SourceStatus::kFault;
+  const bool grey_out = format == PixelFormat::kGray8;
+  out.create(height, width, grey_out ? CV_8UC1 : CV_8UC3);  // no-op when sized
+  void* data = const_cast<uint8_t*>(m.data);                // wrapped read-only below
   switch (m.pixelformat) {
     case bot_core::image_t::PIXEL_FORMAT_GRAY: {
       if (!fits(m.size, m.row_stride, m.width, m.height)) return SourceStatus::kFault;
@@ -195,15 +215,10 @@ SourceStatus LcmImageSource::convert(const ImageMsgView& m, cv::Mat& out) {
       return SourceStatus::kOk;
     }
     case bot_core::image_t::PIXEL_FORMAT_MJPEG:
-      return jpeg_.decode(m.data, static_cast<size_t>(m.size), out) == DecodeStatus::kOk
+      return jpeg.decode(m.data, static_cast<size_t>(m.size), out) == DecodeStatus::kOk
                  ? SourceStatus::kOk
                  : SourceStatus::kFault;
     default:
-      if (!warned_) {
-        RDSLAM_LOG_WARN("%s: pixelformat %d is not supported (GRAY, RGB, BGR, MJPEG); skipped",
-                        info_.uri.c_str(), m.pixelformat);
-        warned_ = true;
-      }
       return SourceStatus::kFault;
   }
 }

@@ -37,6 +37,11 @@ struct ImageMsgView {
 };
 // Checks fingerprint and bounds of an encoded bot_core.image_t; false when malformed.
 bool parse_bot_core_image(const uint8_t* buf, size_t len, ImageMsgView& out);
+// Converts a parsed message into `out`, a width x height grey (kGray8) or BGR (kBgr8) frame
+// (allocated when it is not one). kFault for another size, a pixel format other than GRAY,
+// RGB, BGR, MJPEG, a payload too short for its row stride, or a corrupt JPEG.
+SourceStatus convert_bot_core_image(const ImageMsgView& m, int width, int height,
+                                    PixelFormat format, MjpegDecoder& jpeg, cv::Mat& out);
 
 class LcmImageSource : public FrameSource {
  public:

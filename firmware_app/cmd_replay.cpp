@@ -16,6 +16,7 @@
 #include "core/slam.h"
 #include "core/trajectory_eval.h"
 #include "drivers/decimated_source.h"
+#include "drivers/fault_injection_source.h"
 #include "drivers/loop_source.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
@@ -39,7 +40,8 @@ int cmd_replay(int argc, char** argv) {
       "rdslam replay SOURCE [--config F] [--trajectory OUT.tum] [--report OUT.json] "
       "[--plot OUT.png] [--timings OUT.csv] [--realtime [--speed K] [--preload]] "
       "[--debug-video OUT.mp4] "
-      "[--debug-images DIR] [--debug-every N] [--loop N] [--every N] [--map-log OUT.csv]",
+      "[--debug-images DIR] [--debug-every N] [--loop N] [--every N] [--map-log OUT.csv] "
+      "[--inject SPEC]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -79,6 +81,14 @@ int cmd_replay(int argc, char** argv) {
   p.option("--map-log", &map_log_path, "OUT.csv",
            "write the map size per frame (seq, state, keyframes, map points, points "
            "invalidated so far)");
+  std::string inject_spec;
+  p.option("--inject", &inject_spec, "SPEC",
+           "damage frames to test fault tolerance: comma-separated KIND@FIRST[-LAST][:GAIN], "
+           "frames numbered 0.. as the source (after --every, --loop) delivers them; KIND: "
+           "corrupt, truncate (JPEG round trip through the MJPEG decoder), zero (0x0 image), "
+           "black, saturated, exposure (pixels x GAIN), stamp_back, dup_stamp, drop, unplug "
+           "(camera gone, then back); e.g. corrupt@40-45,drop@80-95,exposure@120-160:3 "
+           "(docs/reliability.md)");
   std::string debug_video, debug_images;
   double debug_every = 1;
   p.option("--debug-video", &debug_video, "OUT.mp4",
@@ -141,6 +151,14 @@ int cmd_replay(int argc, char** argv) {
   if (every < 1 || every != std::floor(every) || every > 1e6) {
     throw UsageError("--every: must be an integer >= 1");
   }
+  std::vector<FaultSpan> faults;
+  if (!inject_spec.empty()) {
+    try {
+      faults = parse_fault_spec(inject_spec);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
   // Opened before the run, so a bad path fails at once rather than after a long replay.
   std::unique_ptr<FILE, int (*)(FILE*)> map_log(nullptr, &std::fclose);
   if (!map_log_path.empty()) {
@@ -165,6 +183,7 @@ int cmd_replay(int argc, char** argv) {
   } else {
     source = make_decimated_source(open_source(uri, so), static_cast<int>(every));
   }
+  source = make_fault_injection_source(std::move(source), std::move(faults));
   const CameraModel camera =
       (!so.camera_overridden && source->camera()) ? *source->camera() : cfg.camera;
   // Lossless replay maps like an offline run: the tracker waits for each keyframe.
@@ -261,6 +280,20 @@ int cmd_replay(int argc, char** argv) {
               static_cast<unsigned long long>(st.source_skipped),
               static_cast<unsigned long long>(st.dropped_capture),
               static_cast<unsigned long long>(st.dropped_tracker));
+  if (st.source_faults + st.source_timeouts + st.frames_invalid + st.stamps_rejected +
+          st.frames_blank + st.exposure_jumps >
+      0) {
+    std::printf(
+        "  %-26s %llu faults, %llu timeouts, %llu reopens, rejected %llu invalid + %llu "
+        "stamps, %llu blank, %llu exposure jumps\n",
+        "source", static_cast<unsigned long long>(st.source_faults),
+        static_cast<unsigned long long>(st.source_timeouts),
+        static_cast<unsigned long long>(st.source_reopens),
+        static_cast<unsigned long long>(st.frames_invalid),
+        static_cast<unsigned long long>(st.stamps_rejected),
+        static_cast<unsigned long long>(st.frames_blank),
+        static_cast<unsigned long long>(st.exposure_jumps));
+  }
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
   if (map_epochs > 1 || map_merges > 0) {
     std::printf("  %-26s %zu epochs, %d merges\n", "maps", map_epochs, map_merges);
@@ -375,6 +408,15 @@ int cmd_replay(int argc, char** argv) {
     // into an earlier one.
     w.value("map_epochs", static_cast<int64_t>(map_epochs));
     w.value("map_merges", static_cast<int64_t>(map_merges));
+    w.begin_object("source_faults");  // rdslam.status_t's fault counters (docs/reliability.md)
+    w.value("faults", static_cast<int64_t>(st.source_faults));
+    w.value("timeouts", static_cast<int64_t>(st.source_timeouts));
+    w.value("reopens", static_cast<int64_t>(st.source_reopens));
+    w.value("frames_invalid", static_cast<int64_t>(st.frames_invalid));
+    w.value("stamps_rejected", static_cast<int64_t>(st.stamps_rejected));
+    w.value("frames_blank", static_cast<int64_t>(st.frames_blank));
+    w.value("exposure_jumps", static_cast<int64_t>(st.exposure_jumps));
+    w.end_object();
     w.end_object();
     FILE* f = std::fopen(report_path.c_str(), "w");
     if (!f) throw std::runtime_error("cannot write " + report_path);

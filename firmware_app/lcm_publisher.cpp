@@ -86,6 +86,12 @@ void LcmPublisher::on_status(const PipelineStatus& s) {
   m.cpu_tracker_s = s.cpu_s[kTrackerThread];
   m.cpu_mapper_s = s.cpu_s[kMapperThread];
   m.map_epoch = static_cast<int64_t>(s.map_epoch);
+  m.source_timeouts = static_cast<int64_t>(s.source_timeouts);
+  m.source_reopens = static_cast<int64_t>(s.source_reopens);
+  m.frames_invalid = static_cast<int64_t>(s.frames_invalid);
+  m.stamps_rejected = static_cast<int64_t>(s.stamps_rejected);
+  m.frames_blank = static_cast<int64_t>(s.frames_blank);
+  m.exposure_jumps = static_cast<int64_t>(s.exposure_jumps);
   const int n = m.encode(buf_, 0, sizeof(buf_));
   if (send(params_.status_channel, buf_, n)) statuses_.fetch_add(1, std::memory_order_relaxed);
 }

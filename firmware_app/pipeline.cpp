@@ -319,10 +319,21 @@ void Pipeline::capture_loop() {
     const SourceStatus st = source_.read(f, timeout_ms);
     const int64_t t1 = mono_now_ns();
     if (st == SourceStatus::kOk) {
+      // Checks on what the source handed over (core/frame_check.h): a rejected frame keeps
+      // its slot and the next read reuses it (a zero-size image is allocated again there).
+      const FrameCheckResult fc = frame_check_.check(f);
+      if (fc.verdict != FrameVerdict::kOk) {
+        (fc.verdict == FrameVerdict::kInvalid ? frames_invalid_ : stamps_rejected_)
+            .fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      if (fc.blank) frames_blank_.fetch_add(1, std::memory_order_relaxed);
+      if (fc.exposure_jump) exposure_jumps_.fetch_add(1, std::memory_order_relaxed);
       if (f.arrival_mono_ns == 0) f.arrival_mono_ns = t1;
       capture_hist_.record_ns(t1 - t0);
       // The source's own skips (a paced replay that fell behind) complete the books.
       source_skipped_.store(source_.counters().skipped, std::memory_order_relaxed);
+      source_reopens_.store(source_.counters().reopens, std::memory_order_relaxed);
       captured_.fetch_add(1, std::memory_order_release);
       frames_.try_push(slot);  // cannot fail: room for every slot + end of stream
       frames_bell_.ring();
@@ -334,10 +345,14 @@ void Pipeline::capture_loop() {
     } else {
       source_faults_.fetch_add(1, std::memory_order_relaxed);
     }
+    if (st != SourceStatus::kOk) {
+      source_reopens_.store(source_.counters().reopens, std::memory_order_relaxed);
+    }
   }
   // Frames a paced source passed over after the last delivered one (it fell behind at the
   // end) complete the books too; stored before end of stream so the final status has them.
   source_skipped_.store(source_.counters().skipped, std::memory_order_relaxed);
+  source_reopens_.store(source_.counters().reopens, std::memory_order_relaxed);
   // A slot still in our hands is simply not returned: the pool dies with the pipeline.
   frames_.try_push(SlotRing::kEndOfStream);
   frames_bell_.ring();
@@ -543,6 +558,11 @@ void Pipeline::build_status(PipelineStatus& s, int64_t now_ns, bool final_report
   s.frames_dropped = s.source_skipped + s.dropped_capture + s.dropped_tracker;
   s.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
   s.frames_published = published_.load(std::memory_order_acquire);
+  s.frames_invalid = frames_invalid_.load(std::memory_order_relaxed);
+  s.stamps_rejected = stamps_rejected_.load(std::memory_order_relaxed);
+  s.frames_blank = frames_blank_.load(std::memory_order_relaxed);
+  s.exposure_jumps = exposure_jumps_.load(std::memory_order_relaxed);
+  s.source_reopens = source_reopens_.load(std::memory_order_relaxed);
   s.last_seq = last_seq_.load(std::memory_order_relaxed);
   s.map_points = map_points_.load(std::memory_order_relaxed);
   s.keyframes = keyframes_.load(std::memory_order_relaxed);
@@ -566,7 +586,7 @@ void Pipeline::publish_status(int64_t now_ns, bool final_report) {
   if (log_level() > LogLevel::kInfo) return;
   // Formatted in short pieces on the stack: glibc's printf allocates a scratch buffer for
   // formats with many conversions, and this line is on the publisher thread (no heap).
-  char line[512];
+  char line[1024];  // the longest line (20-digit counters) is about 700 characters
   int n = std::snprintf(line, sizeof(line), "stats%s: %s fps %.1f captured %llu processed %llu",
                         final_report ? " (total)" : "", to_string(s.state), s.fps,
                         static_cast<unsigned long long>(s.frames_captured),
@@ -580,6 +600,12 @@ void Pipeline::publish_status(int64_t now_ns, bool final_report) {
   n += std::snprintf(line + n, sizeof(line) - n, " faults %llu overflows %llu",
                      static_cast<unsigned long long>(s.source_faults),
                      static_cast<unsigned long long>(s.publish_overflows));
+  n += std::snprintf(line + n, sizeof(line) - n,
+                     " rejected %llu/%llu (invalid/stamp) blank %llu exposure jumps %llu",
+                     static_cast<unsigned long long>(s.frames_invalid),
+                     static_cast<unsigned long long>(s.stamps_rejected),
+                     static_cast<unsigned long long>(s.frames_blank),
+                     static_cast<unsigned long long>(s.exposure_jumps));
   n += std::snprintf(line + n, sizeof(line) - n,
                      " latency p50/p99 %.2f/%.2f ms tracker p50/p99 %.2f/%.2f ms", s.latency_p50_ms,
                      s.latency_p99_ms, s.tracker_p50_ms, s.tracker_p99_ms);
@@ -605,6 +631,11 @@ PipelineCounters Pipeline::counters() const {
   c.source_timeouts = source_timeouts_.load(std::memory_order_relaxed);
   c.source_skipped = source_skipped_.load(std::memory_order_relaxed);
   c.publish_overflows = publish_overflows_.load(std::memory_order_relaxed);
+  c.frames_invalid = frames_invalid_.load(std::memory_order_relaxed);
+  c.stamps_rejected = stamps_rejected_.load(std::memory_order_relaxed);
+  c.frames_blank = frames_blank_.load(std::memory_order_relaxed);
+  c.exposure_jumps = exposure_jumps_.load(std::memory_order_relaxed);
+  c.source_reopens = source_reopens_.load(std::memory_order_relaxed);
   return c;
 }
 

@@ -38,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/frame_check.h"
 #include "core/frame_pool.h"
 #include "core/frame_source.h"
 #include "core/latency_histogram.h"
@@ -89,7 +90,14 @@ struct PipelineStatus {
   uint64_t source_skipped = 0;     // passed over by a paced replay source that fell behind
   uint64_t publish_overflows = 0;  // processed, but the result was lost (publisher ring full)
   uint64_t frames_published = 0;   // results handed to the sinks
-  uint64_t last_seq = 0;           // seq of the last processed frame
+  // Frame checks on the capture thread (core/frame_check.h). Rejected frames are not
+  // captured (not in frames_captured, so not in the books above).
+  uint64_t frames_invalid = 0;   // rejected: zero-size, wrong pixel type or size
+  uint64_t stamps_rejected = 0;  // rejected: stamp not after the last accepted frame's
+  uint64_t frames_blank = 0;     // captured, but no contrast (black, saturated, covered)
+  uint64_t exposure_jumps = 0;   // captured, mean brightness jumped > 2x against the last
+  uint64_t source_reopens = 0;   // FrameSource::counters().reopens (camera came back)
+  uint64_t last_seq = 0;         // seq of the last processed frame
   int map_points = 0;
   int keyframes = 0;
   int64_t invalidated_points = 0;
@@ -110,6 +118,11 @@ struct PipelineCounters {
   uint64_t source_timeouts = 0;
   uint64_t source_skipped = 0;
   uint64_t publish_overflows = 0;
+  uint64_t frames_invalid = 0;  // as in PipelineStatus
+  uint64_t stamps_rejected = 0;
+  uint64_t frames_blank = 0;
+  uint64_t exposure_jumps = 0;
+  uint64_t source_reopens = 0;
   uint64_t dropped() const { return source_skipped + dropped_capture + dropped_tracker; }
 };
 
@@ -215,7 +228,8 @@ class Pipeline {
   std::vector<PipelineSink*> sinks_;
 
   FramePool pool_;
-  SlotRing frames_;  // capture -> tracker
+  FrameCheck frame_check_;  // capture thread
+  SlotRing frames_;         // capture -> tracker
   Doorbell frames_bell_;
   SpscRing<OutputMsg> output_;  // tracker -> publisher
   Doorbell output_bell_;
@@ -243,6 +257,11 @@ class Pipeline {
   std::atomic<uint64_t> source_timeouts_{0};
   std::atomic<uint64_t> source_skipped_{0};  // copied from FrameSource::counters()
   std::atomic<uint64_t> publish_overflows_{0};
+  std::atomic<uint64_t> frames_invalid_{0};
+  std::atomic<uint64_t> stamps_rejected_{0};
+  std::atomic<uint64_t> frames_blank_{0};
+  std::atomic<uint64_t> exposure_jumps_{0};
+  std::atomic<uint64_t> source_reopens_{0};  // copied from FrameSource::counters()
   std::atomic<uint64_t> last_seq_{0};
   std::atomic<int> last_state_{0};
   std::atomic<int> map_points_{0};

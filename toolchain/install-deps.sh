@@ -18,6 +18,7 @@ done
 
 # Build: compiler, cmake, ninja. Libraries: OpenCV 4.6, Eigen 3.4, Ceres 2.1, LCM 1.3,
 # libsystemd, yaml-cpp, libjpeg-turbo. Tests: GoogleTest, Google Benchmark, clang-format,
+# clang with its libFuzzer and sanitizer runtimes (the fuzz targets, tests/fuzz),
 # ffmpeg (real MJPEG/YUYV footage), systemd (systemd-analyze), opencv-doc (sample images and
 # vtest.avi), python3-venv.
 packages=(
@@ -25,7 +26,7 @@ packages=(
   libopencv-dev libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   liblcm-dev liblcm-bin libglib2.0-dev default-jre-headless
   libsystemd-dev libyaml-cpp-dev libturbojpeg0-dev libjpeg62-turbo-dev
-  libgtest-dev libgmock-dev libbenchmark-dev clang-format
+  libgtest-dev libgmock-dev libbenchmark-dev clang-format clang libclang-rt-14-dev
   ffmpeg systemd opencv-doc
   python3 python3-venv python3-dev
   chromium
