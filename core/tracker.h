@@ -212,6 +212,9 @@ class Tracker {
   // turn on the spot (evaluated before track_with_map overwrites the state).
   bool rotation_entry_ok();
   bool rotation_exit_ok();
+  // Median camera-frame depth of the matched points of last_ (of_last) or cur_ at its pose;
+  // -1 with fewer than min_points.
+  double median_depth(bool of_last, int min_points);
   bool track_rotation_only();
   int match_bearings(const Eigen::Matrix3d& R_cam_world, double radius);
   int estimate_rotation_pose(Pose& T, bool robust);

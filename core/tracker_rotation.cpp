@@ -10,6 +10,20 @@
 
 namespace rdslam {
 
+double Tracker::median_depth(bool of_last, int min_points) {
+  const FrameState& fs = of_last ? last_ : cur_;
+  int n = 0;
+  for (int j = 0; j < fs.f.count; ++j) {
+    if (fs.pid[j] < 0) continue;
+    const double z = (fs.T * fs.p[j]).z();
+    if (z > 0.0) depth_scratch_[n++] = z;
+  }
+  if (n < min_points) return -1.0;
+  std::nth_element(depth_scratch_.begin(), depth_scratch_.begin() + n / 2,
+                   depth_scratch_.begin() + n);
+  return depth_scratch_[n / 2];
+}
+
 bool Tracker::rotation_entry_ok() {
   // The recent motion (velocity_, smoothed over about 5 frames: single 6-DoF estimates from the
   // few points left at the map's edge are noisy) turned by at least rotation_min_deg per frame
@@ -19,16 +33,8 @@ bool Tracker::rotation_entry_ok() {
     rot_ema_angle_ = rot_ema_shift_ = 0.0;
     return false;
   }
-  int n = 0;
-  for (int j = 0; j < last_.f.count; ++j) {
-    if (last_.pid[j] < 0) continue;
-    const double z = (last_.T * last_.p[j]).z();
-    if (z > 0.0) depth_scratch_[n++] = z;
-  }
-  if (n < params_.search_min_matches) return false;
-  std::nth_element(depth_scratch_.begin(), depth_scratch_.begin() + n / 2,
-                   depth_scratch_.begin() + n);
-  const double median = depth_scratch_[n / 2];
+  const double median = median_depth(true, params_.search_min_matches);
+  if (median <= 0.0) return false;
   // Translation as an angle: what it moves a point at the median depth by.
   constexpr double kEma = 0.3;  // as in track_rotation_only
   const double angle = Eigen::AngleAxisd(velocity_.R).angle();
@@ -44,16 +50,8 @@ bool Tracker::rotation_exit_ok() {
   // by the camera's offset from the axis at most, while a pose matched to a repeated texture
   // elsewhere in the room jumps by a large part of the scene depth (measured on
   // synth:turn_in_place_offset: 0.9 m at 3 m).
-  int n = 0;
-  for (int j = 0; j < cur_.f.count; ++j) {
-    if (cur_.pid[j] < 0) continue;
-    const double z = (cur_.T * cur_.p[j]).z();
-    if (z > 0.0) depth_scratch_[n++] = z;
-  }
-  if (n < params_.min_inliers) return false;
-  std::nth_element(depth_scratch_.begin(), depth_scratch_.begin() + n / 2,
-                   depth_scratch_.begin() + n);
-  const double median = depth_scratch_[n / 2];
+  const double median = median_depth(false, params_.min_inliers);
+  if (median <= 0.0) return false;
   // Once the turn has stopped (the smoothed rotation below rotation_min_deg per frame), the
   // camera may drive away from the held centre: then the full pose ends rotation mode anyway.
   return (cur_.T.centre() - rot_centre_).norm() < params_.rotation_exit_max_shift * median ||
