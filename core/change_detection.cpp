@@ -169,7 +169,9 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   if (keyframe_image.empty() || current_image.empty() ||
       keyframe_image.channels() != current_image.channels() || keyframe_image.depth() != CV_8U ||
       current_image.depth() != CV_8U || !A.allFinite() || !(A.determinant() > 0) || window < 1 ||
-      window > kMaxAppearanceWindow) {
+      window > kMaxAppearanceWindow || !x.allFinite() || !x_prime.allFinite()) {
+    // (A non-finite pixel passes every bounds test below: a point projected from behind the
+    // camera crashed the mapper on synth:turn_in_place_offset.)
     return kInf;
   }
   // How far the warped grid reaches from x' per keyframe-window pixel, along x and y.
@@ -228,7 +230,11 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   for (int c = 0; c < ch; ++c) k_dev_all += k_dev[c];
   if (normalise && k_dev_all < kMinAppearanceContrast * n * ch) return kInf;  // no texture
   const double off_x = kx - x.x(), off_y = ky - x.y();                        // sub-pixel part of x
-  const double reach_gx = ax * (h + D) + 1, reach_gy = ay * (h + D) + 1;
+  // The grid's offsets reach h + D + |sub-pixel part of x| (<= 0.5) keyframe pixels: with a
+  // large scale (the camera much closer than the keyframe) the half pixel times A exceeded the
+  // bilinear margin of 1 and read past the image (a mapper crash on synth:turn_in_place_offset).
+  const double reach_gx = ax * (h + D + std::fabs(off_x)) + 1,
+               reach_gy = ay * (h + D + std::fabs(off_y)) + 1;
   if (x_prime.x() - reach_gx < 0 || x_prime.y() - reach_gy < 0 ||
       x_prime.x() + reach_gx >= current_image.cols - 1 ||
       x_prime.y() + reach_gy >= current_image.rows - 1) {

@@ -2,6 +2,8 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 
 namespace rdslam {
@@ -163,6 +165,123 @@ bool PoseInformation::covariance(const Pose& T_cam_world, std::array<double, 36>
     for (int c = 0; c < 6; ++c) (*out)[static_cast<size_t>(6 * r + c)] = S(r, c);
   }
   return true;
+}
+
+namespace {
+
+// Squared normalised residual of direction d at rotation R (-1: behind the camera).
+double rotation_residual(const PinholeIntrinsics& K, const Eigen::Matrix3d& R,
+                         const Eigen::Vector3d& d, const Eigen::Vector2d& x, float sigma,
+                         Eigen::Vector2d* r = nullptr, Eigen::Vector3d* X = nullptr) {
+  const Eigen::Vector3d Xc = R * d;
+  if (!(Xc.z() > 1e-9 * d.norm())) return -1.0;
+  const Eigen::Vector2d e = (K.project(Xc) - x) / double(sigma);
+  if (r) *r = e;
+  if (X) *X = Xc;
+  return e.squaredNorm();
+}
+
+int count_rotation_inliers(const PinholeIntrinsics& K, const Eigen::Vector3d* d,
+                           const Eigen::Vector2d* x, const float* sigma, int n,
+                           const Eigen::Matrix3d& R, double gate_chi2, uint8_t* inlier) {
+  int c = 0;
+  for (int i = 0; i < n; ++i) {
+    const double e2 = rotation_residual(K, R, d[i], x[i], sigma[i]);
+    const bool in = e2 >= 0.0 && e2 <= gate_chi2;
+    if (inlier) inlier[i] = in;
+    c += in;
+  }
+  return c;
+}
+
+}  // namespace
+
+Eigen::Matrix3d kabsch_rotation(const Eigen::Vector3d* a_cam, const Eigen::Vector3d* b_world,
+                                int n) {
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();  // sum a b^T
+  for (int i = 0; i < n; ++i) M.noalias() += a_cam[i] * b_world[i].transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) S(2, 2) = -1.0;
+  return svd.matrixU() * S * svd.matrixV().transpose();
+}
+
+int refine_rotation(const PinholeIntrinsics& K, const Eigen::Vector3d* d_world,
+                    const Eigen::Vector2d* x, const float* sigma, int n, Eigen::Matrix3d& R,
+                    uint8_t* inlier, double gate_chi2, int rounds, int iterations,
+                    bool keep_initial_inliers) {
+  const double huber = std::sqrt(gate_chi2);
+  if (!keep_initial_inliers) std::fill(inlier, inlier + n, uint8_t{1});
+  for (int round = 0; round < rounds; ++round) {
+    for (int it = 0; it < iterations; ++it) {
+      Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d g = Eigen::Vector3d::Zero();
+      int used = 0;
+      for (int i = 0; i < n; ++i) {
+        if (!inlier[i]) continue;
+        Eigen::Vector2d r;
+        Eigen::Vector3d Xc;
+        const double e2 = rotation_residual(K, R, d_world[i], x[i], sigma[i], &r, &Xc);
+        if (e2 < 0.0) continue;
+        const double e = std::sqrt(e2);
+        const double w = e <= huber ? 1.0 : huber / e;
+        const Eigen::Matrix<double, 2, 3> J =
+            reprojection_jacobian(K.fx, K.fy, Xc).leftCols<3>() / double(sigma[i]);
+        H.noalias() += w * J.transpose() * J;
+        g.noalias() += w * J.transpose() * r;
+        ++used;
+      }
+      if (used < 2) return 0;
+      const Eigen::Vector3d dw = H.ldlt().solve(-g);
+      if (!dw.allFinite()) return 0;
+      R = so3_exp(dw) * R;
+      if (dw.norm() < 1e-9) break;
+    }
+    const int c = count_rotation_inliers(K, d_world, x, sigma, n, R, gate_chi2, inlier);
+    if (c < 2) return c;
+  }
+  return count_rotation_inliers(K, d_world, x, sigma, n, R, gate_chi2, inlier);
+}
+
+int estimate_rotation(const PinholeIntrinsics& K, const Eigen::Vector3d* d_world,
+                      const Eigen::Vector2d* x, const float* sigma, int n, Eigen::Matrix3d& R,
+                      uint8_t* inlier, double gate_chi2, int hypotheses, uint32_t seed) {
+  if (n < 2) return 0;
+  Eigen::Matrix3d best = R;
+  int best_count = count_rotation_inliers(K, d_world, x, sigma, n, R, gate_chi2, nullptr);
+  uint32_t s = seed * 2654435761u + 1u;
+  auto next = [&s](int m) {  // xorshift32: deterministic, no allocation
+    s ^= s << 13;
+    s ^= s >> 17;
+    s ^= s << 5;
+    return static_cast<int>(s % static_cast<uint32_t>(m));
+  };
+  for (int h = 0; h < hypotheses; ++h) {
+    const int i = next(n);
+    const int j = next(n);
+    if (i == j) continue;
+    Eigen::Vector3d a[2], b[2];
+    const int ij[2] = {i, j};
+    for (int k = 0; k < 2; ++k) {
+      a[k] = K.unproject(x[ij[k]].x(), x[ij[k]].y()).normalized();
+      b[k] = d_world[ij[k]].normalized();
+    }
+    if (a[0].cross(a[1]).norm() < 1e-3 || b[0].cross(b[1]).norm() < 1e-3) continue;
+    const Eigen::Matrix3d Rh = kabsch_rotation(a, b, 2);
+    const int c = count_rotation_inliers(K, d_world, x, sigma, n, Rh, gate_chi2, nullptr);
+    if (c > best_count) {
+      best_count = c;
+      best = Rh;
+    }
+  }
+  if (best_count < 2) return 0;
+  R = best;
+  // Refined from the consensus.
+  count_rotation_inliers(K, d_world, x, sigma, n, R, gate_chi2, inlier);
+  Eigen::Matrix3d Rr = R;
+  const int c = refine_rotation(K, d_world, x, sigma, n, Rr, inlier, gate_chi2, 3, 8, true);
+  if (c >= best_count) R = Rr;
+  return count_rotation_inliers(K, d_world, x, sigma, n, R, gate_chi2, inlier);
 }
 
 }  // namespace rdslam

@@ -94,6 +94,37 @@ class PoseInformation {
   double gate_chi2_ = 0.0;
 };
 
+// Rotation-only pose (issue 23 item 3, pure camera rotation; core/tracker.h "Rotation-only
+// tracking"). With the camera centre c held fixed, a map point p and a point at infinity (a
+// unit bearing b in the world frame, kept by a rotation-only keyframe) are the same kind of
+// constraint: a world direction d (p - c, or b) seen at the ideal pixel x = pi(K R d). Only
+// R_cam_world is estimated; a point at infinity has no depth, so it never constrains (or
+// needs) a translation or a scale.
+//
+// Kabsch: the rotation R minimising sum_i |a_i - R b_i|^2 (a_i in the camera frame, b_i in the
+// world frame, both unit vectors; n >= 2 of them not parallel).
+Eigen::Matrix3d kabsch_rotation(const Eigen::Vector3d* a_cam, const Eigen::Vector3d* b_world,
+                                int n);
+
+// Eq. (1) over the rotation only: Gauss-Newton on SO(3) (left update R' = exp(w) R) of the
+// residuals (pi(K R d_i) - x_i) / sigma_i with a Huber weight (at sqrt(gate_chi2)). `rounds`
+// rounds, each up to `iterations` steps, then re-classifying inlier[i] by |r_i|^2 <=
+// gate_chi2. The first round uses every direction (or, with keep_initial_inliers, those whose
+// inlier[i] is already 1: a consensus). Returns the inlier count at the final R (0 and R
+// unusable when fewer than 2 directions are left). Does not allocate.
+int refine_rotation(const PinholeIntrinsics& K, const Eigen::Vector3d* d_world,
+                    const Eigen::Vector2d* x, const float* sigma, int n, Eigen::Matrix3d& R,
+                    uint8_t* inlier, double gate_chi2, int rounds = 3, int iterations = 8,
+                    bool keep_initial_inliers = false);
+
+// Robust rotation from direction/pixel pairs: hypotheses from the prediction R and from
+// Kabsch on `hypotheses` deterministic (seeded) 2-point samples, scored by the count within
+// gate_chi2; the best is refined by refine_rotation. Returns the inlier count (R and inlier[]
+// set), or 0 with R unchanged when n < 2. Does not allocate.
+int estimate_rotation(const PinholeIntrinsics& K, const Eigen::Vector3d* d_world,
+                      const Eigen::Vector2d* x, const float* sigma, int n, Eigen::Matrix3d& R,
+                      uint8_t* inlier, double gate_chi2, int hypotheses, uint32_t seed);
+
 // Rodrigues' formula: rotation matrix of the rotation vector w (radians).
 Eigen::Matrix3d so3_exp(const Eigen::Vector3d& w);
 

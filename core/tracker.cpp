@@ -58,6 +58,16 @@ void TrackerParams::visit(ParamVisitor& v) {
           "sub-motion test: drop bins whose mean residual exceeds this chi-square (2 DoF; 0 off)");
   v.field("submotion_gate_px", submotion_gate_px, 0.1, 100.0,
           "sub-motion test: inlier gate of its second robust estimate (pixels)");
+  v.field("rotation_only", rotation_only,
+          "rotation-only tracking while the camera turns on the spot out of its map");
+  v.field("rotation_min_deg", rotation_min_deg, 0.0, 90.0,
+          "rotation mode: the last motion turned at least this much per frame (degrees)");
+  v.field("rotation_max_parallax_ratio", rotation_max_parallax_ratio, 0.0, 10.0,
+          "rotation mode: the last translation / median depth is below this x its angle");
+  v.field("rotation_refresh_ratio", rotation_refresh_ratio, 0.0, 1.0,
+          "next rotation-only keyframe when its bearing matches fall below this fraction");
+  v.field("rotation_exit_max_shift", rotation_exit_max_shift, 0.0, 10.0,
+          "rotation mode ends with a full pose within this x its median depth of the centre");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -141,6 +151,21 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   for (size_t l = 0; l < level_scale_.size(); ++l) {
     level_scale_[l] = static_cast<float>(std::pow(features.scale_factor, double(l)));
   }
+  // Rotation-only tracking: the rotation keyframe's buffers at the feature cap.
+  rot_kf_.kps.resize(cap);
+  rot_kf_.un.resize(cap);
+  rot_kf_.scale.resize(cap);
+  rot_kf_.level.resize(cap);
+  rot_kf_.desc.create(static_cast<int>(cap), features.is_sift() ? 128 : 32,
+                      features.is_sift() ? CV_32F : CV_8U);
+  rot_kf_.cell_items.resize(cap);  // its grid (copy_from builds it): cells of >= 8 px
+  rot_kf_.cell_start.reserve(static_cast<size_t>((camera.width / 8 + 1) * (camera.height / 8 + 1)) +
+                             1);
+  rot_bearing_.assign(cap, Eigen::Vector3d::Zero());
+  bear_of_.assign(cap, -1);
+  bear_dist_.assign(cap, 1e30f);
+  corr_bear_.assign(cap, -1);
+  depth_scratch_.resize(cap);
   // Warm up the frame buffers so the first frames do not allocate inside track().
   gray_.create(camera.height, camera.width, CV_8UC1);
 }
@@ -579,6 +604,8 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   if (ref_kf_shared_ > 0) {
     ref_kf_id_ = s.kf_ids[ref];
     T_cam_ref_ = cur_.T * s.kf_pose[ref].inverse();
+    rot_ref_kf_id_ = ref_kf_id_;  // rotation-only poses are reported against it
+    rot_ref_T_ = s.kf_pose[ref];
   }
   const bool few_common = ref_kf_shared_ < params_.m1 ||
                           stats_.inliers < params_.keyframe_overlap_ratio * ref_kf_points_;
@@ -715,13 +742,40 @@ TrackResult Tracker::track(const Frame& frame) {
       ref_kf_id_ = 1;  // this frame is the new map's second keyframe
       T_cam_ref_ = Pose{};
     }
-  } else {
-    found = state_ == TrackingState::kLost ? handle_lost() : track_with_map();
+  } else if (state_ == TrackingState::kLost) {
+    found = handle_lost();
     if (found) {
       maybe_send_keyframe(frame);
       maybe_send_observation(frame);
     }
+  } else {
+    // Rotation mode is entered only from a turn on the spot (judged on the last motion, before
+    // track_with_map replaces it) and left as soon as the full pose is found again.
+    const bool rotation = params_.rotation_only && (rotation_mode_ || rotation_entry_ok());
+    const Pose velocity = velocity_;
+    const int64_t velocity_dt_ns = velocity_dt_ns_;
+    found = track_with_map();
+    if (found && rotation_mode_ && !rotation_exit_ok()) {
+      found = false;  // a full pose far from the held centre: not trusted, still turning
+      velocity_ = velocity;
+      velocity_dt_ns_ = velocity_dt_ns;
+    }
+    if (found) {
+      rotation_mode_ = false;
+    } else if (rotation) {
+      found = track_rotation_only();
+    }
+    if (!found) rotation_mode_ = false;
+    if (found && !rotation_mode_) {
+      maybe_send_keyframe(frame);
+      maybe_send_observation(frame);
+    } else if (found && rot_ref_kf_id_ >= 0) {
+      // Rotation-only poses go to no mapper; reported against the last reference keyframe.
+      ref_kf_id_ = rot_ref_kf_id_;
+      T_cam_ref_ = cur_.T * rot_ref_T_.inverse();
+    }
   }
+  stats_.rotation_mode = found && rotation_mode_;
   TrackResult result;
   fill_result(result, found);
   if (found) {

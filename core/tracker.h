@@ -34,8 +34,38 @@
 //                            `reloc_min_matches` matches with the candidates' points,
 //                            `robust_min_inliers` robust inliers, `reloc_min_inliers` after
 //                            refinement) or, lost too long with a tiny map, reset_map()
+//   track_rotation_only      (TrackerParams::rotation_only) when track_with_map found no pose
+//                            while the camera was turning on the spot, or while it keeps doing
+//                            so: the rotation with the centre held (below)
 //   a found pose is then proposed as a keyframe / observation (not the initialization frame,
-//   which start_from_init sends itself) and becomes the previous frame.
+//   which start_from_init sends itself; not a rotation-only pose) and becomes the previous
+//   frame.
+//
+// Rotation-only tracking (issue 23 item 3; after Pirchheim et al., "Handling pure camera
+// rotation in keyframe-based SLAM", ISMAR 2013): a robot turning on the spot rotates out of its
+// map, and without translation no new point can be triangulated. When track_with_map fails
+// and the recent motion (smoothed over about 5 frames) was a rotation of at least
+// `rotation_min_deg` per frame whose translation, over the median depth of the last frame's
+// points, is below `rotation_max_parallax_ratio` times that angle, the tracker enters rotation
+// mode: the last
+// tracked frame becomes a rotation-only keyframe (its features kept with their world bearing
+// vectors: points at infinity seen from the held centre), and each frame's rotation is
+// estimated, with the centre held, from the visible map points (as directions from the centre)
+// and the rotation keyframe's bearings matched by descriptor around their predicted pixels
+// (2-point Kabsch consensus, then eq. (1) over the rotation: core/pose_refine.h). When its
+// matches fall below `rotation_refresh_ratio` of those it had on its first frame and the view
+// has turned by at least 5 degrees since it, the current frame becomes the next rotation
+// keyframe (matches lost to translation make none: a camera that drives off in rotation mode
+// runs out of inliers and goes LOST, to relocalize, rather than keep a wrong centre); so does
+// a frame after the turn has slowed below half of `rotation_min_deg` per frame. Each frame first
+// tries the full track_with_map; its pose (enough map inliers: the map is in view again) ends
+// rotation mode when its centre lies within `rotation_exit_max_shift` times its inliers' median
+// depth of the held centre (a full pose farther away matched a repeated texture; the frame stays
+// rotation-only). Rotation-only keyframes and their points at infinity stay inside the tracker:
+// they are not sent to the mapper (no keyframe candidates, no frame observations while in rotation
+// mode), so bundle adjustment, map updating (change detection) and PARSAC never see them. Not done
+// yet: a turn into unmapped space followed by translation there (delayed triangulation of the
+// rotation keyframes' features) goes LOST as before.
 //
 // Matching (fast mode): projection-guided. The previous frame's tracked points are projected
 // with a constant-velocity prediction and matched in a radius (descriptor distance + ratio);
@@ -131,6 +161,12 @@ struct TrackerParams {
   // 0), so the tight consensus is still the majority motion, while a region displaced by a few
   // pixels falls out of it.
   double submotion_gate_px = 1.5;
+  // Rotation-only tracking (see the header comment).
+  bool rotation_only = true;
+  double rotation_min_deg = 0.5;              // per frame, for entering rotation mode
+  double rotation_max_parallax_ratio = 0.25;  // translation / depth below this x the angle
+  double rotation_refresh_ratio = 0.5;        // next rotation keyframe below this of its matches
+  double rotation_exit_max_shift = 0.12;      // full pose ends it within this x depth of centre
   InitializerParams init;
 
   void visit(ParamVisitor& v);
@@ -141,6 +177,10 @@ struct TrackerStats {
   int candidates_sent = 0;
   InitStatus last_init = InitStatus::kNoReference;
   Pose predicted;  // T_cam_world the motion model predicted for the last frame tracked with a map
+  bool rotation_mode = false;  // the last frame's pose is rotation-only (centre held)
+  int rotation_frames = 0;     // frames posed rotation-only (since construction)
+  int rotation_keyframes = 0;  // rotation-only keyframes made (tracker-local)
+  int matches_bearing = 0;     // the last rotation-only frame's bearing inliers
 };
 
 class Tracker {
@@ -177,6 +217,17 @@ class Tracker {
   int submotion_test(Pose& T, int inliers);
   bool update_state(const Pose& T, int inliers);
   bool handle_lost();
+  // Rotation-only tracking (see the header comment). rotation_entry_ok: the last motion was a
+  // turn on the spot (evaluated before track_with_map overwrites the state).
+  bool rotation_entry_ok();
+  bool rotation_exit_ok();
+  // Median camera-frame depth of the matched points of last_ (of_last) or cur_ at its pose;
+  // -1 with fewer than min_points.
+  double median_depth(bool of_last, int min_points);
+  bool track_rotation_only();
+  int match_bearings(const Eigen::Matrix3d& R_cam_world, double radius);
+  int estimate_rotation_pose(Pose& T, bool robust);
+  void make_rotation_keyframe(const Features& f, const Pose& T_cam_world);
 
   // Correspondence k of the estimators' arrays (corr_*): feature j of cur_ and 3D point p.
   void set_correspondence(int k, int j, const Eigen::Vector3d& p);
@@ -285,6 +336,22 @@ class Tracker {
   // an estimator rejection (sized only when a sink is set).
   DebugFrameSink* debug_sink_ = nullptr;
   std::vector<uint8_t> debug_rejected_;
+  // Rotation-only tracking: the rotation keyframe (features, unit world bearings), the held
+  // centre, per current feature the matched bearing (-1) and its distance, the reference
+  // keyframe (id, pose) the rotation-only poses are reported against, scratch for the depths.
+  bool rotation_mode_ = false;
+  Eigen::Vector3d rot_centre_ = Eigen::Vector3d::Zero();
+  Features rot_kf_;
+  std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> rot_bearing_;
+  int rot_kf_matches_ = -1;  // matches on the first frame after the rotation keyframe
+  Eigen::Matrix3d rot_kf_R_ = Eigen::Matrix3d::Identity();  // its R_cam_world
+  double rot_ema_angle_ = 0.0, rot_ema_shift_ = 0.0;  // smoothed rotation, translation / depth
+  std::vector<int> bear_of_;
+  std::vector<float> bear_dist_;
+  std::vector<int> corr_bear_;  // per correspondence: its bearing (>= 0) or -1 (a map point)
+  int rot_ref_kf_id_ = -1;
+  Pose rot_ref_T_;
+  std::vector<double> depth_scratch_;
 };
 
 }  // namespace rdslam

@@ -328,6 +328,29 @@ trajectory:
                 "exposure: [[0, 1.0], [97, 1.0], [100, 0.002], [160, 0.002], [163, 1.0]]\n");
 }
 
+// Issue 23 item 3: a differential-drive robot (camera 1 m above the floor, looking
+// horizontally, a little vibration) drives 1 m towards the desk so a map initializes, turns
+// 360 degrees on the spot (mean 40 deg/s, peak 60: 9 s), then drives 1.2 m on past the map's
+// first keyframes. `axis_offset_m` puts the camera on the rotation axis (pure rotation, the
+// worst case) or ahead of it.
+std::string turn_in_place(const char* name, double axis_offset_m) {
+  char camera[512];
+  std::snprintf(camera, sizeof camera, R"(
+trajectory:
+  type: turn
+  center: [0.2, -1.6, 1.0]
+  target: [0.2, 2.0, 1.0]
+  speed_m_s: 0.4
+  drive_m: [1.0, 1.2]
+  turn_deg: 360
+  turn_rate_deg_s: 40
+  axis_offset_m: %.3f
+  shake: 0.5
+)",
+                axis_offset_m);
+  return office(camera, "", std::string("name: ") + name + "\nframes: 450\n");
+}
+
 const std::map<std::string, std::string>& table() {
   static const std::map<std::string, std::string> t = {
       {"static_xyz", office(kXyzCameraWithPause, "", "name: static_xyz\nframes: 300\nseed: 1\n")},
@@ -472,6 +495,8 @@ trajectory:
       {"dim_dark", dim("dim_dark", 0.08)},
       {"two_rooms", kTwoRooms},
       {"lost_unmapped", lost_unmapped()},
+      {"turn_in_place", turn_in_place("turn_in_place", 0.0)},
+      {"turn_in_place_offset", turn_in_place("turn_in_place_offset", 0.1)},
   };
   return t;
 }
@@ -495,7 +520,9 @@ const std::vector<std::string>& synth_scenario_names() {
                                                  "dim",
                                                  "dim_dark",
                                                  "two_rooms",
-                                                 "lost_unmapped"};
+                                                 "lost_unmapped",
+                                                 "turn_in_place",
+                                                 "turn_in_place_offset"};
   return names;
 }
 

@@ -272,6 +272,28 @@ Eigen::Isometry3d eval_camera(const SynthScene& sc, const Shake& shake, double f
     for (int i = 0; i < 3; ++i) off[i] = tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
     p += (tr.speed_m_s * t + off.y()) * fwd + off.x() * right + off.z() * up;
     R = look_at(p, p + fwd) * camera_swing(tr.rpy_amp_deg, t);
+  } else if (tr.type == "turn") {
+    // A robot: drive, turn on the spot, drive on (SynthTrajectorySpec). Each leg is a
+    // smoothstep in time (starts and stops at rest).
+    const double v = std::max(1e-9, tr.speed_m_s);
+    const double t_in = tr.drive_m.x() / v;
+    const double t_turn = std::abs(tr.turn_deg) / std::max(1e-9, tr.turn_rate_deg_s);
+    const double t_out = tr.drive_m.y() / v;
+    auto leg = [](double t0, double dur, double tt) {
+      return dur <= 0 ? (tt >= t0 ? 1.0 : 0.0) : smoothstep(std::clamp((tt - t0) / dur, 0.0, 1.0));
+    };
+    Eigen::Vector3d fwd0 = tr.target - tr.center;
+    fwd0.z() = 0;
+    fwd0 = fwd0.norm() < 1e-9 ? Eigen::Vector3d::UnitY() : fwd0.normalized();
+    const double yaw = deg2rad(tr.turn_deg) * leg(t_in, t_turn, t);
+    const Eigen::Matrix3d Rz = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Vector3d fwd1 =
+        Eigen::AngleAxisd(deg2rad(tr.turn_deg), Eigen::Vector3d::UnitZ()) * fwd0;
+    const Eigen::Vector3d axis = tr.center + tr.drive_m.x() * leg(0, t_in, t) * fwd0 +
+                                 tr.drive_m.y() * leg(t_in + t_turn, t_out, t) * fwd1;
+    const Eigen::Vector3d h = Rz * fwd0;
+    p = axis + tr.axis_offset_m * h;
+    R = look_at(p, p + h);
   } else if (tr.type == "xyz") {
     for (int i = 0; i < 3; ++i) p[i] += tr.amplitude_m[i] * std::sin(2 * kPi * t / tr.period_s[i]);
     R = look_at(p, tr.target);
@@ -649,13 +671,14 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
   rd.known(tn, "trajectory",
            {"type", "center", "target", "amplitude_m", "period_s", "radius_m", "azimuth_deg",
             "elevation_deg", "elevation_amp_deg", "azimuth_period_s", "elevation_period_s",
-            "rpy_amp_deg", "speed_m_s", "shake", "pauses", "path"});
+            "rpy_amp_deg", "speed_m_s", "shake", "pauses", "path", "drive_m", "turn_deg",
+            "turn_rate_deg_s", "axis_offset_m"});
   SynthTrajectorySpec& tr = sc.trajectory;
   tr.type = rd.str(tn, "type", "xyz");
   if (tr.type != "xyz" && tr.type != "halfsphere" && tr.type != "rpy" && tr.type != "static" &&
-      tr.type != "forward" && tr.type != "path")
-    fail(origin,
-         "trajectory.type: '" + tr.type + "'; allowed xyz, halfsphere, rpy, static, forward, path");
+      tr.type != "forward" && tr.type != "path" && tr.type != "turn")
+    fail(origin, "trajectory.type: '" + tr.type +
+                     "'; allowed xyz, halfsphere, rpy, static, forward, path, turn");
   const bool forward = tr.type == "forward";
   if (tr.type == "path") {
     tr.amplitude_m.setZero();  // no sinusoids unless asked for
@@ -696,6 +719,20 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
   tr.elevation_period_s = rd.num(tn, "elevation_period_s", tr.elevation_period_s, 0.1, 1000);
   tr.rpy_amp_deg = rd.vec3(tn, "rpy_amp_deg", tr.rpy_amp_deg);
   tr.shake = rd.num(tn, "shake", tr.type == "static" ? 0.0 : 1.0, 0.0, 20.0);
+  if (tn && tn["drive_m"]) {
+    const YAML::Node d = tn["drive_m"];
+    if (!d.IsSequence() || d.size() != 2) fail(origin, "trajectory.drive_m: expected [in, out]");
+    try {
+      tr.drive_m = {d[0].as<double>(), d[1].as<double>()};
+    } catch (const YAML::Exception&) {
+      fail(origin, "trajectory.drive_m: expected two numbers");
+    }
+  }
+  tr.turn_deg = rd.num(tn, "turn_deg", tr.turn_deg, -3600, 3600);
+  tr.turn_rate_deg_s = rd.num(tn, "turn_rate_deg_s", tr.turn_rate_deg_s, 1, 720);
+  tr.axis_offset_m = rd.num(tn, "axis_offset_m", tr.axis_offset_m, -2, 2);
+  if (tr.type == "turn" && (tr.drive_m.array() < 0).any())
+    fail(origin, "trajectory.drive_m: distances must be >= 0");
   if (tn && tn["pauses"]) {
     for (const auto& p : tn["pauses"]) {
       if (!p.IsSequence() || p.size() != 2)

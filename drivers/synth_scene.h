@@ -128,7 +128,7 @@ struct SynthRenderOptions {
 };
 
 struct SynthTrajectorySpec {
-  std::string type = "xyz";              // xyz | halfsphere | rpy | static | forward | path
+  std::string type = "xyz";              // xyz | halfsphere | rpy | static | forward | path | turn
   Eigen::Vector3d center{0, -1.3, 1.3};  // xyz/rpy/static: mean camera centre; forward: start
   Eigen::Vector3d target{0, 2.5, 1.0};   // the point the camera looks at (forward: sets the
                                          // direction of travel, target - center)
@@ -151,6 +151,15 @@ struct SynthTrajectorySpec {
   // per-key look-at points (path_target, same length, interpolated alike) when the keys have them.
   std::vector<std::pair<double, Eigen::Vector3d>> path;
   std::vector<Eigen::Vector3d> path_target;
+  // turn (a differential-drive robot): from `center`, heading to `target` (horizontally),
+  // drive drive_m[0] metres, turn turn_deg on the spot (positive: to the left, about world
+  // +z), then drive drive_m[1] metres along the new heading. Each leg eases in and out
+  // (smoothstep: the mean speed is speed_m_s, resp. turn_rate_deg_s; the peak 1.5 times it).
+  // The camera sits axis_offset_m ahead of the rotation axis (0: on the axis, pure rotation).
+  Eigen::Vector2d drive_m{1.0, 1.5};
+  double turn_deg = 360.0;
+  double turn_rate_deg_s = 40.0;
+  double axis_offset_m = 0.0;
 };
 
 // Result of a surface query: which object's quad a world point lies on.

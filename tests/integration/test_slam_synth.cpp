@@ -1,7 +1,8 @@
 // Synthetic scenes (drivers/synth_*): issue 7's bars on static scenes (init within 30 frames,
 // >= 99% of later frames tracked, ATE <= 0.3% of the path), no initialization from a fixed
 // camera watching people, relocalization after a one-second blackout, and issue 23's dim
-// light (synth:dim and synth:dim_dark: exposure falling to 15% or 8% and back).
+// light (synth:dim and synth:dim_dark: exposure falling to 15% or 8% and back) and its turn
+// on the spot (synth:turn_in_place, _offset: rotation-only tracking, core/tracker.h).
 #include <gtest/gtest.h>
 
 #include "drivers/synth_source.h"
@@ -88,6 +89,35 @@ TEST(SlamSynth, DimLight) {
 // of the frames after the first map keep a pose, with it 100% (docs/synthetic.md).
 TEST(SlamSynth, DimDarkLight) {
   expect_bars(run_synth("dim_dark", 360), 59, 0.95, 0.01);
+}
+
+// Issue 23 item 3: a robot drives 1 m, turns 360 degrees on the spot (out of its map and back
+// into it), then drives 1.2 m on. At least 95% of the frames after the first map have a pose,
+// one Sim(3) alignment gives ATE <= `max_ate` of the path, and the map is kept (one map epoch,
+// no reset); the turn is bridged by rotation-only poses.
+void expect_turn_bars(const char* scenario, double max_ate) {
+  const SynthRun r = run_synth(scenario, 450);
+  expect_bars(r, 75, 0.95, max_ate);  // the first map while driving (the turn starts at frame 75)
+  uint32_t max_epoch = 0;
+  for (const auto& f : r.run.frames) max_epoch = std::max(max_epoch, f.result.epoch);
+  EXPECT_EQ(max_epoch, 0u) << "the map was reset";
+  EXPECT_GT(r.run.tracker.rotation_frames, 0) << "the turn never needed rotation-only poses";
+  std::printf("[slam] %s: %d rotation-only frames, %d rotation keyframes\n", scenario,
+              r.run.tracker.rotation_frames, r.run.tracker.rotation_keyframes);
+}
+
+// Camera centre on the rotation axis (pure rotation): the issue's bar, ATE <= 1% (measured
+// 0.21%; 100% of the frames after the first map posed, 68.8% without rotation-only tracking).
+TEST(SlamSynth, TurnInPlaceKeepsOneMap) {
+  expect_turn_bars("turn_in_place", 0.01);
+}
+
+// Camera 0.1 m ahead of the axis: posed and one map, but the issue's 1% ATE bar is NOT met
+// (measured 3.0%: the centre is held through the turn while it really moves on a 0.1 m circle;
+// docs/slam.md "Pure rotation"). This bound only guards against regressions (9.5% without
+// rotation-only tracking, when the full pose at the end of the turn locked 0.9 m off).
+TEST(SlamSynth, TurnInPlaceOffsetKeepsOneMap) {
+  expect_turn_bars("turn_in_place_offset", 0.04);
 }
 
 TEST(SlamSynth, FixedCameraWithWalkingPeopleDoesNotInitialize) {
