@@ -12,11 +12,14 @@
 // (keyframe count unchanged); without it the map keeps growing.
 //
 // Also: a truncated or bit-flipped map, and a map from another camera, stop the replay at
-// start with exit code 1 and a message naming the problem.
+// start with exit code 1 and a message naming the problem; `rdslam run` saves periodically,
+// on an LCM command and at shutdown, keeping the last versions, and obeys / rejects commands.
 #include <gtest/gtest.h>
+#include <lcm/lcm.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -27,6 +30,7 @@
 #include "core/trajectory.h"
 #include "core/trajectory_eval.h"
 #include "drivers/source_factory.h"
+#include "rdslam/command_t.hpp"
 
 namespace rdslam {
 namespace {
@@ -172,6 +176,66 @@ TEST(MapLocalize, DamagedOrMismatchedMapsAreRefusedAtStart) {
   const auto info = run_command(bin() + " map info " + shell_quote(cut));
   EXPECT_EQ(info.exit_code, 1);
   EXPECT_NE(info.output.find("truncated"), std::string::npos) << info.output;
+}
+
+int count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
+  ScratchDir dir("map-run");
+  const std::string map = (dir.path() / "run.map").string();
+  const std::string url = "udpm://239.255.76.67:7736?ttl=0";
+  // While the daemon replays 4 s of video in real time, once it listens: localize, save_map,
+  // an unknown code and a malformed message, as another process would send them.
+  auto send_commands = [&] {
+    lcm_t* lcm = lcm_create(url.c_str());
+    ASSERT_NE(lcm, nullptr);
+    for (int8_t code : {command_t::LOCALIZE, command_t::SAVE_MAP, int8_t(42)}) {
+      command_t c;
+      c.utime = 0;
+      c.command = code;
+      std::vector<uint8_t> buf(static_cast<size_t>(c.getEncodedSize()));
+      c.encode(buf.data(), 0, static_cast<int>(buf.size()));
+      lcm_publish(lcm, "RDSLAM_COMMAND", buf.data(), static_cast<unsigned>(buf.size()));
+    }
+    lcm_publish(lcm, "RDSLAM_COMMAND", "junk", 4);
+    lcm_destroy(lcm);
+  };
+  const std::string cmd =
+      bin() + " run --set " + shell_quote(std::string("source=") + kMapScene + "?frames=120") +
+      " --set pipeline.replay_speed=1 --set lcm.url=" + shell_quote(url) +
+      " --set map.save_period_s=1.5 --set map.keep=3 --save-map " + shell_quote(map) + " 2>&1";
+  testing::CommandResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  char line[4096];
+  bool sent = false;
+  while (std::fgets(line, sizeof(line), p)) {
+    r.output += line;
+    if (!sent && std::strstr(line, "run: commands (rdslam.command_t) on RDSLAM_COMMAND")) {
+      send_commands();
+      sent = true;
+    }
+  }
+  const int status = pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  EXPECT_TRUE(sent) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("command: localize"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("commands: 2 accepted, 1 rejected, 1 malformed"), std::string::npos)
+      << r.output;
+  // Periodic (1.5 s, 3 s) and commanded saves by the mapper thread, then the shutdown save.
+  EXPECT_GE(count(r.output, "mapper: map saved to " + map), 2) << r.output;
+  EXPECT_NE(r.output.find("run: map saved to " + map), std::string::npos) << r.output;
+  EXPECT_EQ(count(r.output, "map not saved"), 0) << r.output;
+  for (const std::string& f : {map, map + ".1", map + ".2"}) {
+    const auto info = run_command(bin() + " map info " + shell_quote(f));
+    EXPECT_EQ(info.exit_code, 0) << f << ": " << info.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(map + ".3"));
 }
 
 }  // namespace
