@@ -52,27 +52,18 @@ int map_info(int argc, char** argv) {
   return 0;
 }
 
-struct Sub {
-  const char* name;
-  const char* summary;
-  int (*run)(int argc, char** argv);
-};
-const Sub kSubs[] = {
-    {"info", "validate a saved map and print what it holds", map_info},
-};
-
 }  // namespace
 
 int cmd_map(int argc, char** argv) {
-  if (argc < 1 || std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0) {
-    std::printf("usage: rdslam map WHAT [options]   (rdslam map WHAT --help)\n\n");
-    for (const auto& s : kSubs) std::printf("  %-8s %s\n", s.name, s.summary);
-    return argc < 1 ? 2 : 0;
-  }
-  for (const auto& s : kSubs) {
-    if (std::strcmp(argv[0], s.name) == 0) return s.run(argc - 1, argv + 1);
-  }
-  throw UsageError(std::string("unknown map command '") + argv[0] + "'");
+  // One subcommand so far: `info`.
+  const bool help =
+      argc >= 1 && (std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0);
+  if (argc >= 1 && std::strcmp(argv[0], "info") == 0) return map_info(argc - 1, argv + 1);
+  if (argc >= 1 && !help) throw UsageError(std::string("unknown map command '") + argv[0] + "'");
+  std::printf(
+      "usage: rdslam map info FILE   (rdslam map info --help)\n\n"
+      "  info     validate a saved map and print what it holds\n");
+  return help ? 0 : 2;
 }
 
 }  // namespace rdslam

@@ -63,14 +63,17 @@ int64_t mono_ns() {
 int cmd_run(int argc, char** argv) {
   std::string config_path, log_level;
   std::vector<std::string> overrides;
-  ArgParser p("rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL] "
-              "[--map FILE [--localize]] [--save-map FILE]",
-              "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
-              "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
-              "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
-              "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
-              "with exit code 0; a camera runs until SIGINT or\n"
-              "SIGTERM. Logs go to stderr (journald-friendly).");
+  ArgParser p(
+      "rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL] "
+      "[--map FILE [--localize]] [--save-map FILE]",
+      "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
+      "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
+      "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
+      "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
+      "with exit code 0; a camera runs until SIGINT or\n"
+      "SIGTERM. Logs go to stderr (journald-friendly). SIGUSR1 saves the map to\n"
+      "map.save_path; rdslam.command_t on lcm.command_channel resets the map, saves it or\n"
+      "switches between localization and mapping (LCM has no authentication).");
   p.config_options(&config_path, &overrides);
   p.option("--log-level", &log_level, "LEVEL", "debug, info, warn or error (sets log_level)");
   // Saved maps (issue 24, core/map_io.h, config section `map`).
