@@ -12,15 +12,14 @@ repo="$(cd "$(dirname "$0")/.." && pwd)"
 rdslam="$repo/build/firmware_app/rdslam"
 repeats=2
 speed=0.25
-while [[ $# -gt 0 ]]; do
-  case "$1" in
-    -b) rdslam="$2"; shift 2 ;;
-    -r) repeats="$2"; shift 2 ;;
-    -s) speed="$2"; shift 2 ;;
-    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
-    *) out="$1"; shift ;;
+while getopts "b:r:s:h" opt; do
+  case "$opt" in
+    b) rdslam="$OPTARG" ;; r) repeats="$OPTARG" ;; s) speed="$OPTARG" ;;
+    *) sed -n '2,9p' "$0"; exit 0 ;;
   esac
 done
+shift $((OPTIND - 1))
+out="${1:-}"
 out="${out:-$(mktemp -d /tmp/map_save_stall.XXXXXX)}"
 mkdir -p "$out"
 printf '%-8s %-6s %-3s %6s %7s %8s %16s %6s\n' period nice rep saves frames dropped "trk p50/p99 ms" load
