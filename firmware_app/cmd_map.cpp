@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <iterator>
 #include <string>
 
 #include "core/map_io.h"
@@ -52,18 +53,14 @@ int map_info(int argc, char** argv) {
   return 0;
 }
 
+const Subcommand kSubs[] = {
+    {"info", "validate a saved map and print what it holds", map_info},
+};
+
 }  // namespace
 
 int cmd_map(int argc, char** argv) {
-  // One subcommand so far: `info`.
-  const bool help =
-      argc >= 1 && (std::strcmp(argv[0], "--help") == 0 || std::strcmp(argv[0], "-h") == 0);
-  if (argc >= 1 && std::strcmp(argv[0], "info") == 0) return map_info(argc - 1, argv + 1);
-  if (argc >= 1 && !help) throw UsageError(std::string("unknown map command '") + argv[0] + "'");
-  std::printf(
-      "usage: rdslam map info FILE   (rdslam map info --help)\n\n"
-      "  info     validate a saved map and print what it holds\n");
-  return help ? 0 : 2;
+  return run_subcommand("map", "commands", kSubs, std::size(kSubs), argc, argv);
 }
 
 }  // namespace rdslam
