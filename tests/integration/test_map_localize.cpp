@@ -190,7 +190,8 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
   const std::string map = (dir.path() / "run.map").string();
   const std::string url = "udpm://239.255.76.67:7736?ttl=0";
   // While the daemon replays 4 s of video in real time, once it listens: localize, save_map,
-  // an unknown code and a malformed message, as another process would send them.
+  // an unknown code and a malformed message, as another process would send them; a reset once
+  // the tracker has initialized.
   auto send_commands = [&] {
     lcm_t* lcm = lcm_create(url.c_str());
     ASSERT_NE(lcm, nullptr);
@@ -205,6 +206,18 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
     lcm_publish(lcm, "RDSLAM_COMMAND", "junk", 4);
     lcm_destroy(lcm);
   };
+  // Once the tracker has a map: reset (a reset while INITIALIZING has nothing to discard).
+  auto send_reset = [&] {
+    lcm_t* lcm = lcm_create(url.c_str());
+    ASSERT_NE(lcm, nullptr);
+    command_t c;
+    c.utime = 0;
+    c.command = command_t::RESET;
+    std::vector<uint8_t> buf(static_cast<size_t>(c.getEncodedSize()));
+    c.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    lcm_publish(lcm, "RDSLAM_COMMAND", buf.data(), static_cast<unsigned>(buf.size()));
+    lcm_destroy(lcm);
+  };
   const std::string cmd =
       bin() + " run --set " + shell_quote(std::string("source=") + kMapScene + "?frames=120") +
       " --set pipeline.replay_speed=1 --set lcm.url=" + shell_quote(url) +
@@ -213,20 +226,28 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
   FILE* p = popen(cmd.c_str(), "r");
   ASSERT_NE(p, nullptr);
   char line[4096];
-  bool sent = false;
+  bool sent = false, initialized = false, reset_sent = false;
   while (std::fgets(line, sizeof(line), p)) {
     r.output += line;
     if (!sent && std::strstr(line, "run: commands (rdslam.command_t) on RDSLAM_COMMAND")) {
       send_commands();
       sent = true;
     }
+    initialized = initialized || std::strstr(line, "tracker: initialized with") != nullptr;
+    if (sent && initialized && !reset_sent) {
+      send_reset();
+      reset_sent = true;
+    }
   }
   const int status = pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  EXPECT_TRUE(sent) << r.output;
+  EXPECT_TRUE(sent && reset_sent) << r.output;
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("command: localize"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("commands: 2 accepted, 1 rejected, 1 malformed"), std::string::npos)
+  EXPECT_NE(r.output.find("commands: 3 accepted, 1 rejected, 1 malformed"), std::string::npos)
+      << r.output;
+  // The tracker discards the map at its next frame and initializes a new one.
+  EXPECT_NE(r.output.find("tracker: reset requested: re-initializing"), std::string::npos)
       << r.output;
   // Periodic (1.5 s, 3 s) and commanded saves by the mapper thread, then the shutdown save.
   EXPECT_GE(count(r.output, "mapper: map saved to " + map), 2) << r.output;
