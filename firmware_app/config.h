@@ -38,7 +38,8 @@ struct LcmParams {
   std::string bot_core_pose_channel = "POSE_BODY";
   std::string image_channel = "RDSLAM_IMAGE";  // bot_core.image_t JPEG for viewers
   std::string map_channel = "RDSLAM_MAP";      // rdslam.map_t for viewers
-  std::string command_channel = "RDSLAM_COMMAND";  // rdslam.command_t (firmware_app/lcm_commands.h)
+  // rdslam.command_t that `rdslam run` obeys (firmware_app/lcm_commands.h); "" = none
+  std::string command_channel = "RDSLAM_COMMAND";
   void visit(ParamVisitor& v);
 };
 
