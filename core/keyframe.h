@@ -86,7 +86,7 @@ struct SlamLink {
   // localize_only freezes the map (the tracker proposes no keyframes and sends no observations,
   // the mapper ignores any that are queued); each increment of save_requests makes the mapper
   // save its map at its next step (Mapper::set_save_target), counted in saves_done /
-  // saves_failed; each increment of reset_requests makes the tracker discard the map and
+  // saves_failed; each increment of reset_requests makes the tracker start a new map epoch and
   // initialize again.
   std::atomic<bool> localize_only{false};
   std::atomic<uint32_t> save_requests{0}, saves_done{0}, saves_failed{0};

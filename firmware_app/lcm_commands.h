@@ -1,8 +1,8 @@
 // Commands over LCM (issue 24 item 4): `rdslam run` subscribes to rdslam.command_t on
 // lcm.command_channel (default RDSLAM_COMMAND) and applies each command to the SLAM system
 // through the SlamLink's command fields (core/keyframe.h):
-//   RESET     discard the map, initialize a new one, mapping on (SlamLink::reset_requests;
-//             the tracker serves it at its next frame, a no-op while it is INITIALIZING)
+//   RESET     start a new map epoch, mapping on (SlamLink::reset_requests; the tracker serves
+//             it at its next frame as after a long loss, a no-op while it is INITIALIZING)
 //   SAVE_MAP  save the map to map.save_path (SlamLink::save_requests, served by the mapper)
 //   LOCALIZE  localization only, the map is frozen (SlamLink::localize_only)
 //   MAPPING   the map grows and is updated again

@@ -246,8 +246,10 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
   EXPECT_NE(r.output.find("command: localize"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("commands: 3 accepted, 1 rejected, 1 malformed"), std::string::npos)
       << r.output;
-  // The tracker discards the map at its next frame and initializes a new one.
-  EXPECT_NE(r.output.find("tracker: reset requested: re-initializing"), std::string::npos)
+  // The tracker starts a new map at its next frame.
+  EXPECT_NE(
+      r.output.find("tracker: reset requested (map epoch 0): re-initializing a new map, epoch 1"),
+      std::string::npos)
       << r.output;
   // Periodic (1.5 s, 3 s) and commanded saves by the mapper thread, then the shutdown save.
   EXPECT_GE(count(r.output, "mapper: map saved to " + map), 2) << r.output;
