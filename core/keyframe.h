@@ -82,6 +82,15 @@ struct SlamLink {
   // Debug output (core/debug_frame.h): > 0 makes the mapper list this many recently
   // invalidated points in each snapshot (MapSnapshot::invalid_*). Set before the run.
   std::atomic<int> debug_recent_invalid{0};
+  // Prior maps and run-time commands (issue 24; set by firmware_app from any thread):
+  // localize_only freezes the map (the tracker proposes no keyframes and sends no observations,
+  // the mapper ignores any that are queued); each increment of save_requests makes the mapper
+  // save its map at its next step (Mapper::set_save_target), counted in saves_done /
+  // saves_failed; each increment of reset_requests makes the tracker start a new map epoch and
+  // initialize again.
+  std::atomic<bool> localize_only{false};
+  std::atomic<uint32_t> save_requests{0}, saves_done{0}, saves_failed{0};
+  std::atomic<uint32_t> reset_requests{0};
 };
 
 }  // namespace rdslam

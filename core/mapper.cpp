@@ -60,7 +60,56 @@ void Mapper::set_change_detection(const ChangeDetectionParams& p) {
                  : nullptr;
 }
 
+void Mapper::load(Map&& map) {
+  map_ = std::move(map);
+  epoch_ = 0;
+  trail_.clear();
+  if (updater_) updater_->reset();
+  if (places_) {
+    places_->clear();
+    for (const auto& kv : map_.keyframes) add_place(kv.first);
+  }
+  publish();
+}
+
+bool Mapper::save(const std::string& path, int keep, std::string* error, MapInfo* info,
+                  double* ms) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const std::vector<uint8_t> bytes = encode_map(map_, camera_, fparams_, info);
+    write_map_file_atomic(path, bytes, keep);
+  } catch (const std::exception& e) {
+    if (error) *error = e.what();
+    return false;
+  }
+  if (ms) {
+    *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+  return true;
+}
+
+void Mapper::serve_save_requests() {
+  // A save request (SlamLink::save_requests) is served between two units of work, on this
+  // thread, which owns the map; the tracker keeps tracking on the last published snapshot.
+  const uint32_t want = link_->save_requests.load(std::memory_order_acquire);
+  if (want == saves_served_) return;
+  saves_served_ = want;
+  std::string err = save_path_.empty() ? "no map file configured" : "";
+  MapInfo info;
+  double ms = 0.0;
+  if (!save_path_.empty() && save(save_path_, save_keep_, &err, &info, &ms)) {
+    link_->saves_done.fetch_add(1, std::memory_order_relaxed);
+    RDSLAM_LOG_INFO("mapper: map saved to %s (%d keyframes, %d points, %.1f MiB, %.0f ms)",
+                    save_path_.c_str(), info.keyframes, info.points, info.file_bytes / 1048576.0,
+                    ms);
+  } else {
+    link_->saves_failed.fetch_add(1, std::memory_order_relaxed);
+    RDSLAM_LOG_ERROR("mapper: map not saved: %s", err.c_str());
+  }
+}
+
 bool Mapper::step(int timeout_ms) {
+  serve_save_requests();
   KeyframeCandidate* c = link_->candidates.front();
   FrameObservation* o = c ? nullptr : link_->observations.front();
   if (!c && !o) {
@@ -117,6 +166,7 @@ int Mapper::remove_invalid_keyframes() {
 }
 
 void Mapper::process_observation(const FrameObservation& o) {
+  if (link_->localize_only.load(std::memory_order_relaxed)) return;  // the map is frozen
   if (!updater_ || o.epoch != epoch_ || map_.keyframes.empty()) return;
   UpdateFrame f;
   f.image = &o.image;
@@ -148,6 +198,7 @@ void Mapper::process(const KeyframeCandidate& c) {
       handle_init(c);
       return;
     case KeyframeCandidate::Kind::kKeyframe:
+      if (link_->localize_only.load(std::memory_order_relaxed)) return;  // the map is frozen
       // The tracker relocalized into a kept earlier map: it becomes the current map again.
       if (c.epoch != epoch_ && !reactivate(c.epoch)) return;
       if (c.epoch == epoch_ && !map_.keyframes.empty()) {

@@ -26,6 +26,8 @@
 //  7. local bundle adjustment (core/bundle_adjustment.h): the new keyframe and its most
 //     covisible keyframes, `ba.window` keyframes in all;
 //  8. culling (bounded map), then publish.
+// In localization-only mode (SlamLink::localize_only) candidates and observations are taken
+// off their rings and ignored: the map stays as it is.
 //
 // Recovery (map epochs, docs/slam.md "Recovery"): a reset candidate (the tracker was LOST too
 // long, core/tracker.h) starts a new map epoch. The current map is kept, frozen (no bundle
@@ -72,6 +74,7 @@
 #include "core/keyframe.h"
 #include "core/keyframe_database.h"
 #include "core/map.h"
+#include "core/map_io.h"
 #include "core/map_merge.h"
 #include "core/map_updater.h"
 #include "core/matching.h"
@@ -146,6 +149,22 @@ class Mapper {
   double final_epoch_scale(uint32_t epoch) const;
   // The epochs of the earlier maps kept (oldest first); tests and diagnostics.
   std::vector<uint32_t> kept_epochs() const;
+  // Prior maps (issue 24, core/map_io.h). load() replaces the (empty) map by `map`, rebuilds
+  // its place-recognition vectors from the keyframes' descriptors and publishes it (with the
+  // SIFT KD-tree), so the tracker can relocalize in it; call before the first step().
+  // save() writes the current map to `path` atomically (keeping `keep` - 1 older versions) on
+  // the calling thread, which must be the mapper thread or any thread while the mapper thread
+  // is not running; returns false and sets *error when it could not (the previous file is left
+  // as it was). `info` (optional) receives what was written and `*ms` the time it took.
+  void load(Map&& map);
+  bool save(const std::string& path, int keep, std::string* error, MapInfo* info = nullptr,
+            double* ms = nullptr);
+  // Where step() saves on a request (SlamLink::save_requests); empty: requests fail. Call
+  // before the first step().
+  void set_save_target(const std::string& path, int keep) {
+    save_path_ = path;
+    save_keep_ = keep;
+  }
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
   // Diagnostics: every Algorithm 1 verdict (core/map_updater.h CheckRecord); tests only.
@@ -205,6 +224,7 @@ class Mapper {
   bool resolve_merges(uint32_t* epoch, int* id, double* scale) const;
   void add_place(int kf);  // place recognition: the keyframe's vector into the database
   void fill_recent_invalid(MapSnapshot& s);
+  void serve_save_requests();
 
   MapperParams params_;
   FeatureParams fparams_;
@@ -254,6 +274,10 @@ class Mapper {
   std::deque<std::pair<int64_t, Eigen::Vector3d>> recent_invalid_;
   std::unordered_set<int64_t> invalid_seen_;
   uint32_t recent_invalid_epoch_ = 0;
+  // Save requests (SlamLink::save_requests): where, how many versions, how many served.
+  std::string save_path_;
+  int save_keep_ = 1;
+  uint32_t saves_served_ = 0;
 };
 
 }  // namespace rdslam

@@ -1,6 +1,7 @@
 #include "core/slam.h"
 
 #include <chrono>
+#include <cstdio>
 #include <ctime>
 
 namespace rdslam {
@@ -29,6 +30,7 @@ class TrackerStageImpl : public TrackerStage {
     if (debug_) tracker_.emit_debug_frame(frame, r);
     return r;
   }
+  void start_with_map() { tracker_.start_with_map(); }
   bool set_debug_sink(DebugFrameSink* sink) override {
     tracker_.set_debug_sink(sink);
     debug_ = sink != nullptr;
@@ -54,6 +56,19 @@ class MapperStageImpl : public MapperStage {
   double final_epoch_scale(uint32_t epoch) const override {
     return mapper_.final_epoch_scale(epoch);
   }
+  bool save_map(const std::string& path, int keep, std::string* message) override {
+    MapInfo info;
+    double ms = 0.0;
+    if (!mapper_.save(path, keep, message, &info, &ms)) return false;
+    if (message) {
+      char m[256];
+      std::snprintf(m, sizeof(m), "%d keyframes, %d points, %.1f MiB in %.0f ms", info.keyframes,
+                    info.points, info.file_bytes / 1048576.0, ms);
+      *message = m;
+    }
+    return true;
+  }
+  Mapper& mapper() { return mapper_; }
 
  private:
   Mapper mapper_;
@@ -83,11 +98,21 @@ std::shared_ptr<SlamLink> make_slam_link(const SlamParams& params, uint32_t ring
   return link;
 }
 
-SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera) {
+SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera,
+                            const SlamStart& start) {
   auto link = make_slam_link(params, kCandidateSlots);
+  link->localize_only.store(start.localize_only);
+  auto tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
+  auto mapper = std::make_unique<MapperStageImpl>(params, camera, link);
+  mapper->mapper().set_save_target(start.save_path, start.save_keep);
+  if (start.prior) {
+    mapper->mapper().load(std::move(*start.prior));
+    tracker->start_with_map();
+  }
   SlamStages s;
-  s.tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
-  s.mapper = std::make_unique<MapperStageImpl>(params, camera, link);
+  s.tracker = std::move(tracker);
+  s.mapper = std::move(mapper);
+  s.link = std::move(link);
   return s;
 }
 

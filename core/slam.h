@@ -15,6 +15,7 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/change_detection.h"
@@ -40,6 +41,19 @@ struct SlamParams {
 struct SlamStages {
   std::unique_ptr<TrackerStage> tracker;
   std::unique_ptr<MapperStage> mapper;
+  // What they share; firmware_app uses its command fields (localize_only, save_requests,
+  // reset_requests: core/keyframe.h) while the pipeline runs.
+  std::shared_ptr<SlamLink> link;
+};
+
+// A map to start from (core/map_io.h): the mapper loads it before the first step() and the
+// tracker starts LOST, relocalizing in it; `localize_only` freezes it (SlamLink::localize_only).
+// `save_path` (optional): where the mapper saves on a save request, keeping `save_keep` versions.
+struct SlamStart {
+  Map* prior = nullptr;  // moved from
+  bool localize_only = false;
+  std::string save_path;
+  int save_keep = 1;
 };
 
 // The link between a tracker and a mapper (core/keyframe.h); in ORB mode with the place
@@ -47,7 +61,8 @@ struct SlamStages {
 // file when it is missing or corrupt).
 std::shared_ptr<SlamLink> make_slam_link(const SlamParams& params, uint32_t ring_capacity);
 
-SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera);
+SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera,
+                            const SlamStart& start = {});
 
 struct OfflineFrame {
   int64_t stamp_ns = 0;

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "core/geometry.h"
 
@@ -89,6 +90,14 @@ class MapperStage {
   // The scale applied to map epoch `epoch` by the merges that moved it into another map (1:
   // none); the final trajectory scales a frame's TrackResult::p_ref_cam by it.
   virtual double final_epoch_scale(uint32_t /*epoch*/) const { return 1.0; }
+  // Saves the map to `path` (core/map_io.h; atomic, `keep` - 1 older versions kept) from the
+  // calling thread: the mapper thread, or any thread while the mapper thread is not running
+  // (after the last step()). False with *message set when there is no map to save or the
+  // write failed; true with a one-line summary in *message.
+  virtual bool save_map(const std::string& /*path*/, int /*keep*/, std::string* message) {
+    if (message) *message = "this pipeline has no map";
+    return false;
+  }
 };
 
 }  // namespace rdslam

@@ -567,7 +567,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
                   init.median_parallax_deg);
 }
 
-void Tracker::reset_map() {
+void Tracker::reset_map(const char* why) {
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;
   const uint32_t old_epoch = epoch_;
@@ -581,7 +581,7 @@ void Tracker::reset_map() {
   have_last_ = false;
   state_ = TrackingState::kInitializing;
   lost_frames_ = 0;
-  RDSLAM_LOG_WARN("tracker: lost (map epoch %u): re-initializing a new map, epoch %u", old_epoch,
+  RDSLAM_LOG_WARN("tracker: %s (map epoch %u): re-initializing a new map, epoch %u", why, old_epoch,
                   epoch_);
 }
 
@@ -614,6 +614,7 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   const bool young = link_->keyframes.load(std::memory_order_relaxed) < params_.young_map_keyframes;
   const int interval = young ? params_.young_map_keyframe_interval : params_.max_keyframe_interval;
   if (!few_common && frames_since_kf_ < interval) return;
+  if (link_->localize_only.load(std::memory_order_relaxed)) return;  // the map is frozen
   if (params_.sync_mapper) wait_for_mapper();
   KeyframeCandidate* slot = link_->candidates.back();
   if (!slot) return;  // the mapper has not taken the previous candidate yet
@@ -634,6 +635,7 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
 
 void Tracker::maybe_send_observation(const Frame& frame) {
   if (link_->observe_every_n <= 0 || !snap_) return;
+  if (link_->localize_only.load(std::memory_order_relaxed)) return;  // the map is frozen
   if (++frames_since_obs_ < link_->observe_every_n || frames_since_kf_ == 0) return;
   FrameObservation* o = link_->observations.back();
   if (!o) {
@@ -720,7 +722,21 @@ void Tracker::fill_result(TrackResult& r, bool found) const {
   r.p_ref_cam = T_ref_cam.t;
 }
 
+void Tracker::start_with_map() {
+  state_ = TrackingState::kLost;
+  have_last_ = false;
+  lost_frames_ = 0;
+  lost_since_pending_ = true;  // new_map_after_s counts from the first frame's stamp
+}
+
 TrackResult Tracker::track(const Frame& frame) {
+  const uint32_t resets = link_->reset_requests.load(std::memory_order_relaxed);
+  if (resets != resets_served_ && state_ != TrackingState::kInitializing) {
+    reset_map("reset requested");  // tried again at the next frame while the candidate ring is full
+    if (state_ == TrackingState::kInitializing) resets_served_ = resets;
+  } else {
+    resets_served_ = resets;
+  }
   ++frame_no_;
   ++track_no_;
   wait_ms_ = 0.0;
@@ -906,6 +922,10 @@ bool Tracker::handle_lost() {
   // LOST: relocalization against the map (Sec. 3) or a kept earlier map; lost for too long
   // (reset_after_lost_frames with a map of at most 2 keyframes, new_map_after_s with any),
   // INITIALIZING a new map epoch.
+  if (lost_since_pending_) {
+    lost_since_ns_ = cur_.stamp_ns;
+    lost_since_pending_ = false;
+  }
   if (relocalize()) {
     state_ = TrackingState::kRelocalized;
     velocity_ = Pose();
@@ -914,13 +934,15 @@ bool Tracker::handle_lost() {
     return true;
   }
   ++lost_frames_;
+  // A frozen map (SlamLink::localize_only) is never replaced: keep relocalizing.
+  if (link_->localize_only.load(std::memory_order_relaxed)) return false;
   // A tiny map after reset_after_lost_frames; any map after new_map_after_s (recovery: the
   // mapper keeps a map of more than 2 keyframes for relocalization and merging).
   const bool tiny = !snap_ || snap_->kf_ids.size() <= 2;
   const bool too_long =
       params_.new_map_after_s > 0.0 &&
       static_cast<double>(cur_.stamp_ns - lost_since_ns_) >= params_.new_map_after_s * 1e9;
-  if ((lost_frames_ > params_.reset_after_lost_frames && tiny) || too_long) reset_map();
+  if ((lost_frames_ > params_.reset_after_lost_frames && tiny) || too_long) reset_map("lost");
   return false;
 }
 

@@ -38,8 +38,11 @@
 //                            while the camera was turning on the spot, or while it keeps doing
 //                            so: the rotation with the centre held (below)
 //   a found pose is then proposed as a keyframe / observation (not the initialization frame,
-//   which start_from_init sends itself; not a rotation-only pose) and becomes the previous
-//   frame.
+//   which start_from_init sends itself; not a rotation-only pose; nothing while
+//   SlamLink::localize_only freezes the map) and becomes the previous frame.
+// A prior map (start_with_map) starts the tracker LOST (new_map_after_s counts from the first
+// frame; a frozen map, SlamLink::localize_only, is never replaced); SlamLink::reset_requests
+// makes it start a new map at the next frame (reset_map).
 //
 // Rotation-only tracking (issue 23 item 3; after Pirchheim et al., "Handling pure camera
 // rotation in keyframe-based SLAM", ISMAR 2013): a robot turning on the spot rotates out of its
@@ -196,6 +199,9 @@ class Tracker {
   // track()) hands the frame's record to the sink; the mapper is asked to list the last
   // `recent_invalid` invalidated points in its snapshots. Call before the first track().
   void set_debug_sink(DebugFrameSink* sink, int recent_invalid = 4096);
+  // A prior map (core/map_io.h) was loaded into the mapper: start LOST, so the first frames
+  // relocalize in it instead of initializing a new map. Call before the first track().
+  void start_with_map();
   void emit_debug_frame(const Frame& frame, const TrackResult& result);
 
  private:
@@ -261,7 +267,7 @@ class Tracker {
   // PARSAC's rejected points, the pose and the image go to the mapper (skipped when full).
   void maybe_send_observation(const Frame& frame);
   void start_from_init(const InitResult& init, const Frame& frame);
-  void reset_map();
+  void reset_map(const char* why);
   // The frame's result, filled once per frame: `found` publishes cur_.T, else the last good pose.
   void fill_result(TrackResult& r, bool found) const;
   void wait_for_mapper();
@@ -281,6 +287,7 @@ class Tracker {
   uint32_t epoch_ = 0;
   uint32_t max_epoch_ = 0;     // the largest epoch number used (a new map takes the next)
   int64_t lost_since_ns_ = 0;  // stamp of the first LOST frame (TrackerParams::new_map_after_s)
+  bool lost_since_pending_ = false;  // start_with_map: lost_since_ns_ is the first frame's stamp
   std::shared_ptr<const MapSnapshot> snap_;
   uint64_t snap_version_ = 0;
 
@@ -305,6 +312,7 @@ class Tracker {
   int frames_since_obs_ = 0;
   int lost_frames_ = 0;
   int64_t frame_no_ = 0;
+  uint32_t resets_served_ = 0;  // SlamLink::reset_requests handled
 
   // Scratch (preallocated).
   std::vector<int> cand_;

@@ -23,6 +23,7 @@
 #include "firmware_app/commands.h"
 #include "firmware_app/debug_video.h"
 #include "firmware_app/lcm_publisher.h"
+#include "firmware_app/map_files.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/plot.h"
 #include "firmware_app/progress.h"
@@ -41,7 +42,7 @@ int cmd_replay(int argc, char** argv) {
       "[--plot OUT.png] [--timings OUT.csv] [--realtime [--speed K] [--preload]] "
       "[--debug-video OUT.mp4] "
       "[--debug-images DIR] [--debug-every N] [--loop N] [--every N] [--map-log OUT.csv] "
-      "[--inject SPEC]",
+      "[--lcm] [--inject SPEC] [--map FILE [--localize]] [--save-map FILE]",
       "Run the SLAM pipeline (all threads) on a recorded or synthetic source, e.g.\n"
       "synth:static_xyz or kitti:DIR, and print tracked %, fps, latency, map size and,\n"
       "when the source has ground truth, the ATE (Sim3-aligned).");
@@ -112,6 +113,17 @@ int cmd_replay(int argc, char** argv) {
          "publish on the configured lcm.url what `rdslam run` publishes: rdslam.pose_t per "
          "frame, rdslam.status_t, the annotated JPEG image and rdslam.map_t (viewer.*), so a "
          "recording drives `rdslam view` and any LCM subscriber (not with --debug-video/-images)");
+  // Saved maps (issue 24, core/map_io.h).
+  std::string prior_map_path, save_map_path;
+  bool localize = false;
+  p.option("--map", &prior_map_path, "FILE",
+           "start from a saved map (rdslam map info FILE shows it): the tracker relocalizes in "
+           "it; without --localize the map keeps growing and updating");
+  p.flag("--localize", &localize,
+         "with --map: localization only, the map is frozen (no keyframes, no map updating)");
+  p.option("--save-map", &save_map_path, "FILE",
+           "write the map at the end of the replay (atomically: a temporary file, fsync, "
+           "rename)");
   if (!p.parse(argc, argv)) return 0;
   if (lcm_out && (!debug_video.empty() || !debug_images.empty())) {
     throw UsageError(
@@ -143,6 +155,7 @@ int cmd_replay(int argc, char** argv) {
     throw UsageError("--speed: needs --realtime (a lossless replay runs as fast as it can)");
   }
   if (preload && !realtime) throw UsageError("--preload: needs --realtime");
+  if (localize && prior_map_path.empty()) throw UsageError("--localize: needs --map FILE");
   if (std::isnan(speed)) speed = 1.0;
   if (!(speed > 0.0) || speed > 1000.0) throw UsageError("--speed: must be in (0, 1000]");
   if (loops < 1 || loops != std::floor(loops) || loops > 1e6) {
@@ -189,7 +202,15 @@ int cmd_replay(int argc, char** argv) {
   // Lossless replay maps like an offline run: the tracker waits for each keyframe.
   if (!realtime) cfg.slam.tracker.sync_mapper = true;
   cfg.slam.parsac = cfg.parsac;
-  SlamStages stages = make_slam_stages(cfg.slam, camera);
+  Map prior;
+  MapInfo prior_info;
+  SlamStart start;
+  if (!prior_map_path.empty()) {
+    prior = load_prior_map(prior_map_path, camera, cfg.slam.features, &prior_info);
+    start.prior = &prior;
+    start.localize_only = localize;
+  }
+  SlamStages stages = make_slam_stages(cfg.slam, camera, start);
   stages.mapper->set_keep_trail(true);  // the final trajectory (a replay is bounded)
   std::unique_ptr<DebugVideoWriter> debug_writer;
   if (debug_out) {
@@ -219,6 +240,11 @@ int cmd_replay(int argc, char** argv) {
   if (viewer_pub) viewer_pub->stop();
   DebugVideoStats dstats;
   if (debug_writer) dstats = debug_writer->finish();
+  // The mapper thread has stopped: the map is saved from this thread.
+  std::string map_saved;
+  if (!save_map_path.empty() && !stages.mapper->save_map(save_map_path, 1, &map_saved)) {
+    throw std::runtime_error("--save-map " + save_map_path + ": " + map_saved);
+  }
 
   RunReport report;
   std::vector<TrackingState> states;
@@ -297,6 +323,21 @@ int cmd_replay(int argc, char** argv) {
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
   if (map_epochs > 1 || map_merges > 0) {
     std::printf("  %-26s %zu epochs, %d merges\n", "maps", map_epochs, map_merges);
+  }
+  int64_t first_pose = -1;  // first TRACKING or RELOCALIZED frame
+  for (size_t i = 0; i < states.size() && first_pose < 0; ++i) {
+    if (states[i] == TrackingState::kTracking || states[i] == TrackingState::kRelocalized) {
+      first_pose = static_cast<int64_t>(i);
+    }
+  }
+  if (!prior_map_path.empty()) {
+    std::printf("  %-26s %s (%d keyframes, %d points; %s), first pose at frame %lld\n", "prior map",
+                prior_map_path.c_str(), prior_info.keyframes, prior_info.points,
+                localize ? "localization only" : "mapping continues",
+                static_cast<long long>(first_pose));
+  }
+  if (!save_map_path.empty()) {
+    std::printf("  %-26s %s (%s)\n", "map saved", save_map_path.c_str(), map_saved.c_str());
   }
   if (report.ate_rmse_m) {
     std::printf("  %-26s %.4f m (%.3f%% of path)\n", "ATE rmse (Sim3)", *report.ate_rmse_m,
@@ -416,6 +457,16 @@ int cmd_replay(int argc, char** argv) {
     w.value("stamps_rejected", static_cast<int64_t>(st.stamps_rejected));
     w.value("frames_blank", static_cast<int64_t>(st.frames_blank));
     w.value("exposure_jumps", static_cast<int64_t>(st.exposure_jumps));
+    w.end_object();
+    // Saved maps (--map, --localize, --save-map); first_pose_frame: the first TRACKING or
+    // RELOCALIZED frame (-1: none).
+    w.begin_object("prior_map");
+    w.value("file", prior_map_path);
+    w.value("localize_only", localize);
+    w.value("keyframes", prior_info.keyframes);
+    w.value("points", prior_info.points);
+    w.value("first_pose_frame", first_pose);
+    w.value("saved_to", save_map_path);
     w.end_object();
     w.end_object();
     FILE* f = std::fopen(report_path.c_str(), "w");

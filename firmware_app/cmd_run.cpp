@@ -13,7 +13,9 @@
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/commands.h"
+#include "firmware_app/lcm_commands.h"
 #include "firmware_app/lcm_publisher.h"
+#include "firmware_app/map_files.h"
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/service_notify.h"
@@ -23,15 +25,16 @@ namespace rdslam {
 
 namespace {
 
-// SIGINT/SIGTERM are blocked in every thread (threads inherit the mask from the thread that
-// starts them) and taken synchronously by the supervising thread with sigtimedwait(): no
-// asynchronous handler, nothing to make async-signal-safe.
+// SIGINT/SIGTERM (stop) and SIGUSR1 (save the map) are blocked in every thread (threads inherit the
+// mask from the thread that starts them) and taken synchronously by the supervising thread with
+// sigtimedwait(): no asynchronous handler, nothing to make async-signal-safe.
 class StopSignals {
  public:
   StopSignals() {
     sigemptyset(&set_);
     sigaddset(&set_, SIGINT);
     sigaddset(&set_, SIGTERM);
+    sigaddset(&set_, SIGUSR1);
     pthread_sigmask(SIG_BLOCK, &set_, &old_);
   }
   ~StopSignals() { pthread_sigmask(SIG_SETMASK, &old_, nullptr); }
@@ -49,22 +52,44 @@ class StopSignals {
 // Supervision period: how often the loop below looks at the pipeline.
 constexpr int kSuperviseTickMs = 100;
 
+int64_t mono_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
 }  // namespace
 
 int cmd_run(int argc, char** argv) {
   std::string config_path, log_level;
   std::vector<std::string> overrides;
-  ArgParser p("rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL]",
-              "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
-              "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
-              "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
-              "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
-              "with exit code 0; a camera runs until SIGINT or\n"
-              "SIGTERM. Logs go to stderr (journald-friendly).");
+  ArgParser p(
+      "rdslam run --config FILE [--set KEY=VALUE ...] [--log-level LEVEL] "
+      "[--map FILE [--localize]] [--save-map FILE]",
+      "Run the SLAM daemon: read frames from the configured `source`, track them on the\n"
+      "pipeline threads and publish rdslam.pose_t per frame and rdslam.status_t at 1 Hz\n"
+      "over LCM, and the annotated image and map for rdslam view (viewer.*). A recorded\n"
+      "source (e.g. --set source=tum:DIR) replays at pipeline.replay_speed and ends\n"
+      "with exit code 0; a camera runs until SIGINT or\n"
+      "SIGTERM. Logs go to stderr (journald-friendly). SIGUSR1 saves the map to\n"
+      "map.save_path; rdslam.command_t on lcm.command_channel resets the map, saves it or\n"
+      "switches between localization and mapping (LCM has no authentication).");
   p.config_options(&config_path, &overrides);
   p.option("--log-level", &log_level, "LEVEL", "debug, info, warn or error (sets log_level)");
+  // Saved maps (issue 24, core/map_io.h, config section `map`).
+  std::string prior_map_path, save_map_path;
+  bool localize = false;
+  p.option("--map", &prior_map_path, "FILE",
+           "start from a saved map: the tracker relocalizes in it; without --localize the map "
+           "keeps growing and updating");
+  p.flag("--localize", &localize, "with --map: localization only, the map is frozen");
+  p.option("--save-map", &save_map_path, "FILE",
+           "save the map to FILE (sets map.save_path): at the end of the run "
+           "(map.save_on_shutdown), every map.save_period_s seconds and on SIGUSR1");
   if (!p.parse(argc, argv)) return 0;
   if (!log_level.empty()) overrides.push_back("log_level=" + log_level);
+  if (localize && prior_map_path.empty()) throw UsageError("--localize: needs --map FILE");
+  if (!save_map_path.empty()) overrides.push_back("map.save_path=" + save_map_path);
   AppConfig cfg = load_cli_config(config_path, overrides);
   for (const auto& kv : non_default_params(cfg)) RDSLAM_LOG_INFO("config: %s", kv.c_str());
 
@@ -83,6 +108,10 @@ int cmd_run(int argc, char** argv) {
   SlamStages slam;
   TrackerStage* tracker = nullptr;
   MapperStage* mapper = nullptr;
+  if (cfg.pipeline.stages == "passthrough" && !prior_map_path.empty()) {
+    throw UsageError("--map: needs pipeline.stages=slam (the pass-through stages have no map)");
+  }
+  Map prior;
   CameraModel camera = cfg.camera;
   if (cfg.pipeline.stages == "passthrough") {
     passthrough = std::make_unique<PassthroughStages>(source->ground_truth());
@@ -91,7 +120,19 @@ int cmd_run(int argc, char** argv) {
   } else {
     if (!so.camera_overridden && source->camera()) camera = *source->camera();
     cfg.slam.parsac = cfg.parsac;
-    slam = make_slam_stages(cfg.slam, camera);
+    SlamStart start;
+    start.save_path = cfg.map.save_path;
+    start.save_keep = cfg.map.keep;
+    if (!prior_map_path.empty()) {
+      MapInfo mi;
+      prior = load_prior_map(prior_map_path, camera, cfg.slam.features, &mi);
+      start.prior = &prior;
+      start.localize_only = localize;
+      RDSLAM_LOG_INFO("run: map %s loaded (%d keyframes, %d points); %s", prior_map_path.c_str(),
+                      mi.keyframes, mi.points,
+                      localize ? "localization only" : "mapping continues");
+    }
+    slam = make_slam_stages(cfg.slam, camera, start);
     tracker = slam.tracker.get();
     mapper = slam.mapper.get();
   }
@@ -121,10 +162,33 @@ int cmd_run(int argc, char** argv) {
   // pipeline.frames_captured() / frames_processed() (progress), pipeline.status() (state,
   // fps, drops; refreshed every stats period), pipeline.running().
   PipelineNotifier notify(pipeline);  // systemd READY/STATUS/WATCHDOG/STOPPING (issue 11)
+  // Map saves while running (the mapper thread serves the requests, core/keyframe.h).
+  const bool can_save = slam.link && !cfg.map.save_path.empty();
+  const int64_t save_period_ns = static_cast<int64_t>(cfg.map.save_period_s * 1e9);
+  int64_t next_save_ns = mono_ns() + save_period_ns;
+  // Commands over LCM (firmware_app/lcm_commands.h), handled on this thread.
+  std::unique_ptr<LcmCommands> commands;
+  if (slam.link && !cfg.lcm.command_channel.empty()) {
+    commands =
+        std::make_unique<LcmCommands>(cfg.lcm.url, cfg.lcm.command_channel, slam.link, can_save);
+    RDSLAM_LOG_INFO("run: commands (rdslam.command_t) on %s", cfg.lcm.command_channel.c_str());
+  }
   while (!pipeline.wait(0)) {
     const int sig = signals.wait(std::min(kSuperviseTickMs, notify.tick_period_ms()));
     notify.poll();
-    if (sig != 0) {
+    if (commands) commands->poll();
+    if (can_save && save_period_ns > 0 && mono_ns() >= next_save_ns) {
+      slam.link->save_requests.fetch_add(1);
+      next_save_ns += save_period_ns;
+    }
+    if (sig == SIGUSR1) {
+      if (can_save) {
+        RDSLAM_LOG_INFO("run: SIGUSR1 received, saving the map to %s", cfg.map.save_path.c_str());
+        slam.link->save_requests.fetch_add(1);
+      } else {
+        RDSLAM_LOG_WARN("run: SIGUSR1 received, but no map file is configured (map.save_path)");
+      }
+    } else if (sig != 0) {
       if (!pipeline.stop_requested()) {
         RDSLAM_LOG_INFO("run: %s received, stopping", sig == SIGINT ? "SIGINT" : "SIGTERM");
         notify.stopping(sig == SIGINT ? "SIGINT" : "SIGTERM");
@@ -143,6 +207,21 @@ int cmd_run(int argc, char** argv) {
                   static_cast<unsigned long long>(s.frames_processed),
                   static_cast<unsigned long long>(s.frames_dropped),
                   static_cast<unsigned long long>(lcm.poses_published()));
+  if (commands) {
+    RDSLAM_LOG_INFO("run: commands: %llu accepted, %llu rejected, %llu malformed",
+                    static_cast<unsigned long long>(commands->accepted()),
+                    static_cast<unsigned long long>(commands->rejected()),
+                    static_cast<unsigned long long>(commands->malformed()));
+  }
+  if (can_save && cfg.map.save_on_shutdown) {
+    // Every thread has stopped: the map is saved from this thread.
+    std::string msg;
+    if (!mapper->save_map(cfg.map.save_path, cfg.map.keep, &msg)) {
+      RDSLAM_LOG_ERROR("run: map not saved to %s: %s", cfg.map.save_path.c_str(), msg.c_str());
+      return 1;
+    }
+    RDSLAM_LOG_INFO("run: map saved to %s (%s)", cfg.map.save_path.c_str(), msg.c_str());
+  }
   return 0;
 }
 

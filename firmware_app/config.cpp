@@ -21,6 +21,8 @@ void LcmParams::visit(ParamVisitor& v) {
   v.field("bot_core_pose_channel", bot_core_pose_channel, {}, "channel of bot_core.pose_t");
   v.field("image_channel", image_channel, {}, "channel of the annotated bot_core.image_t (JPEG)");
   v.field("map_channel", map_channel, {}, "channel of rdslam.map_t (keyframes, map points)");
+  v.field("command_channel", command_channel, {},
+          "channel of rdslam.command_t that `rdslam run` obeys (empty: none; no authentication)");
 }
 
 void ViewerParams::visit(ParamVisitor& v) {
@@ -52,6 +54,7 @@ std::vector<AppConfig::Section> AppConfig::sections() {
       {"mapper", [this](ParamVisitor& v) { slam.mapper.visit(v); }},
       {"parsac", [this](ParamVisitor& v) { parsac.visit(v); }},
       {"dynamic", [this](ParamVisitor& v) { slam.dynamic.visit(v); }},
+      {"map", [this](ParamVisitor& v) { map.visit(v); }},
   };
 }
 

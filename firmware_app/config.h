@@ -20,6 +20,7 @@
 #include "core/slam.h"
 #include "drivers/libcamera_source.h"
 #include "drivers/v4l2_source.h"
+#include "firmware_app/map_files.h"
 #include "firmware_app/pipeline_params.h"
 
 namespace rdslam {
@@ -37,6 +38,8 @@ struct LcmParams {
   std::string bot_core_pose_channel = "POSE_BODY";
   std::string image_channel = "RDSLAM_IMAGE";  // bot_core.image_t JPEG for viewers
   std::string map_channel = "RDSLAM_MAP";      // rdslam.map_t for viewers
+  // rdslam.command_t that `rdslam run` obeys (firmware_app/lcm_commands.h); "" = none
+  std::string command_channel = "RDSLAM_COMMAND";
   void visit(ParamVisitor& v);
 };
 
@@ -70,6 +73,7 @@ struct AppConfig {
   ThreadParams threads;       // cores and priority per pipeline thread
   SlamParams slam;            // features, tracker, mapper sections (core/slam.h)
   ParsacParams parsac;        // robust pose estimation, RDSLAM Sec. 5 (core/parsac.h)
+  MapFileParams map;          // saving the map in `rdslam run` (firmware_app/map_files.h)
 
   // Sections in file order: {yaml key, visitor}. An empty key means top-level fields.
   // A module adds its parameter struct as a member above and one line in sections().

@@ -30,6 +30,7 @@ const Command kCommands[] = {
     {"vocab", "place-recognition vocabulary: train, info, recall", rdslam::cmd_vocab},
     {"view", "serve a live web view (image, 3D map, state) of rdslam's LCM output",
      rdslam::cmd_view},
+    {"map", "saved maps: info (what a map file holds)", rdslam::cmd_map},
 };
 
 void print_help() {

@@ -25,7 +25,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libopencv-dev libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   liblcm-dev liblcm-bin libglib2.0-dev default-jre-headless
-  libsystemd-dev libyaml-cpp-dev libturbojpeg0-dev libjpeg62-turbo-dev
+  libsystemd-dev libyaml-cpp-dev libturbojpeg0-dev libjpeg62-turbo-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev clang-format clang libclang-rt-14-dev
   ffmpeg systemd opencv-doc
   python3 python3-venv python3-dev

@@ -147,7 +147,8 @@ TEST_F(ConfigErrors, SetNotABoolean) {
 TEST_F(ConfigErrors, SetUnknownKey) {
   EXPECT_EQ(error_of("", {"lcm.ttl=1"}),
             "config: unknown key 'lcm.ttl'; allowed in lcm: url, pose_channel, status_channel, "
-            "publish_bot_core_pose, bot_core_pose_channel, image_channel, map_channel");
+            "publish_bot_core_pose, bot_core_pose_channel, image_channel, map_channel, "
+            "command_channel");
 }
 
 TEST_F(ConfigErrors, SetWithoutEquals) {
