@@ -669,10 +669,26 @@ SynthScene load_synth_scene_yaml(const std::string& yaml_text, const std::string
 
   const YAML::Node tn = root["trajectory"];
   rd.known(tn, "trajectory",
-           {"type", "center", "target", "amplitude_m", "period_s", "radius_m", "azimuth_deg",
-            "elevation_deg", "elevation_amp_deg", "azimuth_period_s", "elevation_period_s",
-            "rpy_amp_deg", "speed_m_s", "shake", "pauses", "path", "drive_m", "turn_deg",
-            "turn_rate_deg_s", "axis_offset_m"});
+           {"type",
+            "center",
+            "target",
+            "amplitude_m",
+            "period_s",
+            "radius_m",
+            "azimuth_deg",
+            "elevation_deg",
+            "elevation_amp_deg",
+            "azimuth_period_s",
+            "elevation_period_s",
+            "rpy_amp_deg",
+            "speed_m_s",
+            "shake",
+            "pauses",
+            "path",
+            "drive_m",
+            "turn_deg",
+            "turn_rate_deg_s",
+            "axis_offset_m"});
   SynthTrajectorySpec& tr = sc.trajectory;
   tr.type = rd.str(tn, "type", "xyz");
   if (tr.type != "xyz" && tr.type != "halfsphere" && tr.type != "rpy" && tr.type != "static" &&
