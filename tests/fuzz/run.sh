@@ -52,7 +52,7 @@ libs=(-Wl,--start-group "$build/firmware_app/librdslam_app.a" "$build/drivers/li
   -lopencv_calib3d -lopencv_features2d -lopencv_flann -lopencv_video -lopencv_videoio
   -lopencv_imgcodecs -lopencv_imgproc -lopencv_core -lceres -lglog -lgflags -lspqr -lcholmod
   -lamd -lcamd -lccolamd -lcolamd -lsuitesparseconfig -lcxsparse -llapack -lblas -ltbb
-  -lturbojpeg -llcm -lyaml-cpp -lsystemd -lpthread)
+  -lturbojpeg -llcm -lyaml-cpp -lsystemd -lz -lpthread)
 [[ -f /usr/lib/x86_64-linux-gnu/libcamera.so || -f /usr/lib/aarch64-linux-gnu/libcamera.so ]] &&
   libs+=(-lcamera -lcamera-base)
 
