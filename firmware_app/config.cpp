@@ -286,6 +286,18 @@ void apply_override(YAML::Node& root, const std::string& item) {
 
 }  // namespace
 
+namespace {
+// A mapping key as a plain name: YAML also allows sequences and mappings as keys
+// ("? {fx: 1}: 2"), which as<std::string>() would throw as a yaml-cpp conversion error.
+std::string key_name(const YAML::Node& key, const std::string& where) {
+  if (!key.IsScalar()) {
+    throw ConfigError("config: " + where + ": a key that is not a plain name (line " +
+                      std::to_string(key.Mark().line + 1) + ")");
+  }
+  return key.Scalar();
+}
+}  // namespace
+
 AppConfig load_config(const std::string& path, const std::vector<std::string>& overrides) {
   YAML::Node root(YAML::NodeType::Map);
   if (!path.empty()) {
@@ -320,7 +332,7 @@ AppConfig load_config(const std::string& path, const std::vector<std::string>& o
     section.visit(lv);
     if (n.IsDefined() && n.IsMap()) {
       for (const auto& kv : n) {
-        const std::string k = kv.first.as<std::string>();
+        const std::string k = key_name(kv.first, section.key);
         bool ok = false;
         for (const auto& kn : lv.known()) ok = ok || kn == k;
         if (!ok) {
@@ -331,7 +343,7 @@ AppConfig load_config(const std::string& path, const std::vector<std::string>& o
     }
   }
   for (const auto& kv : root) {
-    const std::string k = kv.first.as<std::string>();
+    const std::string k = key_name(kv.first, "top level");
     if (!top_known.count(k)) {
       throw ConfigError("config: unknown key '" + k + "'; allowed at top level: " +
                         join(std::vector<std::string>(top_known.begin(), top_known.end())));

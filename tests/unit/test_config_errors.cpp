@@ -75,6 +75,15 @@ TEST_F(ConfigErrors, FileUnknownKeyInSection) {
             "cx, cy, k1, k2, p1, p2, k3, k4");
 }
 
+// Found by tests/fuzz/fuzz_config.cpp: YAML allows a mapping or a sequence as a key ("? ...");
+// it is a ConfigError naming where, not a yaml-cpp conversion exception escaping load_config.
+TEST_F(ConfigErrors, KeyThatIsNotAPlainName) {
+  EXPECT_EQ(error_of(file("camera:\n? fx: 1\n: 2\n"), {}),
+            "config: top level: a key that is not a plain name (line 2)");
+  EXPECT_EQ(error_of(file("camera:\n  ? [fx, fy]\n  : 500\n"), {}),
+            "config: camera: a key that is not a plain name (line 2)");
+}
+
 TEST_F(ConfigErrors, FileUnknownTopLevelKey) {
   // The allowed list names every registered section and top-level key, sorted; it grows as
   // modules register sections, so it is taken from the configuration itself.
