@@ -1,6 +1,7 @@
 #include "drivers/dataset_euroc.h"
 
 #include <yaml-cpp/yaml.h>
+#include <cmath>
 
 #include <Eigen/SVD>
 #include <charconv>
@@ -80,6 +81,13 @@ EurocCameraInfo read_euroc_camera_yaml(const std::string& path) {
                              "' is not supported; allowed pinhole");
   }
   const auto res = numbers(root["resolution"], path, "resolution", 2);
+  // Checked before the conversion: a double outside int's range is undefined behaviour to cast.
+  for (double v : res) {
+    if (!(v >= 1.0 && v <= 65536.0) || v != std::floor(v)) {
+      throw std::runtime_error(path + ": resolution: " + std::to_string(v) +
+                               " is not a whole number of pixels in [1, 65536]");
+    }
+  }
   cam.width = static_cast<int>(res[0]);
   cam.height = static_cast<int>(res[1]);
   const auto k = numbers(root["intrinsics"], path, "intrinsics", 4);

@@ -129,6 +129,17 @@ TEST(DatasetEuroc, EquidistantModelAndBadCalibration) {
   bad.replace(bad.find("[40, 30]"), 8, "[41, 30]");  // images are 40x30
   d.write("mav0/cam0/sensor.yaml", bad);
   EXPECT_THROW(open_source("euroc:" + d.str(), kDefaults), std::runtime_error);
+  // Found by tests/fuzz/fuzz_dataset_index.cpp: a resolution beyond int's range was cast
+  // (undefined behaviour); now a clear error naming the key.
+  bad = kSensorYaml;
+  bad.replace(bad.find("[40, 30]"), 8, "[4e30, 30]");
+  d.write("mav0/cam0/sensor.yaml", bad);
+  try {
+    read_euroc_camera_yaml(d.str("mav0/cam0/sensor.yaml"));
+    FAIL() << "resolution 4e30 accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("resolution:"), std::string::npos) << e.what();
+  }
   d.write("mav0/cam0/sensor.yaml", kSensorYaml);
   d.write("mav0/cam0/data.csv", "#timestamp [ns],filename\n12.5,a.png\n");
   try {
