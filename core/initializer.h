@@ -12,9 +12,9 @@
 //     still tried, and initializes when its parallax reaches `low_flow_parallax_deg` (step 4);
 //     a pair below the floor is refused without any model fitting (camera at rest: no cost).
 //  2. Both models are fitted robustly, at most `ransac_max_iterations` samples each: the
-//     essential matrix (five-point, Nister; OpenCV's USAC_ACCURATE, i.e. RANSAC whose best
-//     model is refit on its inliers, so the motion is stable at small baselines) and a
-//     homography (RANSAC). Model selection uses ORB-SLAM's
+//     essential matrix (five-point, Nister; for a low-flow pair OpenCV's USAC_ACCURATE, i.e.
+//     RANSAC whose best model is refit on its inliers, so the motion is stable at small
+//     baselines) and a homography (RANSAC). Model selection uses ORB-SLAM's
 //     score (Mur-Artal et al. 2015, Sec. IV): S_M = sum_i rho(d_i^2 / sigma^2),
 //     rho(x) = Gamma - x for x < T_M else 0, with symmetric transfer errors for H
 //     (T_H = 5.991) and epipolar distances for E (T_E = 3.841), Gamma = 5.991; the homography
