@@ -114,6 +114,9 @@ SeqResult read_run(const fs::path& dir, int exit_status, double wall_s) {
         read_trajectory((dir / "online.tum").string(), TrajectoryFormat::kTum);
     const Trajectory final_t =
         read_trajectory((dir / "final.tum").string(), TrajectoryFormat::kTum);
+    std::vector<Eigen::Vector3d> positions;
+    for (const auto& sp : online) positions.push_back(sp.p_world_cam);
+    r.roughness_pct = trajectory_roughness_pct(positions);
     if (online.size() >= 3 && final_t.size() >= 3) {
       const EvalResult er = evaluate_trajectories(final_t, online, EvalParams{});
       if (er.ok && er.gt_path_length_m > 0.0) r.consistency_pct = er.ate_pct_path.rmse;
@@ -353,7 +356,7 @@ int cmd_tune(int argc, char** argv) {
            "including the start configuration (default 24)");
   p.option("--objective", &objective_text, "ate|consistency",
            "ate: ATE % of path (needs ground truth); consistency: online vs final trajectory "
-           "agreement, no ground truth (default ate)");
+           "agreement plus path roughness, no ground truth (default ate; docs/tune.md)");
   p.repeated("--holdout", &holdout, "H1 [H2 ...]",
              "sequences never used in the search: the defaults, the start and the best "
              "configuration are compared on them");
@@ -513,9 +516,11 @@ int cmd_tune(int argc, char** argv) {
     for (double v : a) any_gt = any_gt || v < kFailureScore;
     if (any_gt) {
       std::printf(
-          "rank agreement, rung 1 (consistency vs ate objective): Spearman %.2f, Kendall %.2f, "
-          "same best: %s\n",
-          spearman(a, c), kendall_tau(a, c), best_a == best_c ? "yes" : "no");
+          "rank agreement, rung 1 (consistency vs ate objective, %zu configurations): Spearman "
+          "%.2f, Kendall %.2f, same best: %s (ate objective of the consistency best %.4f, of the "
+          "ate best %.4f)\n",
+          a.size(), spearman(a, c), kendall_tau(a, c), best_a == best_c ? "yes" : "no", a[best_c],
+          a[best_a]);
     }
   }
   if (!out.holdout.empty()) {

@@ -317,10 +317,27 @@ const char* to_string(TuneObjective o) {
 
 double sequence_score(TuneObjective o, const SeqResult& r) {
   if (!r.ok || !r.initialized) return kFailureScore;
-  const std::optional<double>& e = o == TuneObjective::kAte ? r.ate_pct : r.consistency_pct;
-  if (!e) return kFailureScore;
+  double e = 0.0;
+  if (o == TuneObjective::kAte) {
+    if (!r.ate_pct) return kFailureScore;
+    e = *r.ate_pct;
+  } else {
+    if (!r.consistency_pct || !r.roughness_pct) return kFailureScore;
+    e = *r.consistency_pct + *r.roughness_pct;
+  }
   const double shortfall = std::max(0.0, kMinTracked - r.tracked_ratio_after_init);
-  return std::min(kFailureScore, *e + kTrackedWeight * 100.0 * shortfall);
+  return std::min(kFailureScore, e + kTrackedWeight * 100.0 * shortfall);
+}
+
+std::optional<double> trajectory_roughness_pct(const std::vector<Eigen::Vector3d>& positions) {
+  if (positions.size() < 3) return std::nullopt;
+  double path = 0.0, sum_sq = 0.0;
+  for (size_t i = 1; i < positions.size(); ++i) path += (positions[i] - positions[i - 1]).norm();
+  for (size_t i = 1; i + 1 < positions.size(); ++i) {
+    sum_sq += (positions[i + 1] - 2.0 * positions[i] + positions[i - 1]).squaredNorm();
+  }
+  if (!(path > 0.0)) return std::nullopt;
+  return 100.0 * std::sqrt(sum_sq / static_cast<double>(positions.size() - 2)) / path;
 }
 
 std::string run_key(const std::string& base_identity, const std::string& sequence, int frames,
@@ -362,6 +379,7 @@ ResultStore::ResultStore(std::string path) : path_(std::move(path)) {
     r.ate_pct = opt_number(n["ate_pct"]);
     r.ate_final_pct = opt_number(n["ate_final_pct"]);
     r.consistency_pct = opt_number(n["consistency_pct"]);
+    r.roughness_pct = opt_number(n["roughness_pct"]);
     r.wall_s = opt_number(n["wall_s"]).value_or(0.0);
     index_[n["key"].Scalar()] = r;
     ++loaded_;
@@ -395,6 +413,7 @@ void ResultStore::append(const std::string& key, const std::string& sequence, in
   w.value("ate_pct", r.ate_pct);
   w.value("ate_final_pct", r.ate_final_pct);
   w.value("consistency_pct", r.consistency_pct);
+  w.value("roughness_pct", r.roughness_pct);
   w.value("wall_s", r.wall_s);
   w.end_object();
   std::string doc = w.str();

@@ -9,6 +9,7 @@
 // thread that runs the tune command (main); an Evaluator may use processes, not threads of ours.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -81,6 +82,7 @@ struct SeqResult {
   std::optional<double> ate_pct;          // online ATE, % of path (needs ground truth)
   std::optional<double> ate_final_pct;    // final (bundle-adjusted) trajectory's ATE, % of path
   std::optional<double> consistency_pct;  // online vs final, Sim3-aligned RMS, % of final path
+  std::optional<double> roughness_pct;  // online trajectory's roughness (trajectory_roughness_pct)
   double wall_s = 0.0;
 };
 
@@ -91,12 +93,18 @@ const char* to_string(TuneObjective o);
 // The per-sequence score (lower is better; docs/tune.md "Objectives"):
 //   failed run, never initialized, or no error term:   kFailureScore
 //   else: E + kTrackedWeight * 100 * max(0, kMinTracked - tracked_ratio_after_init)
-// with E = ate_pct (ate) or consistency_pct (consistency). An objective is the mean over the
-// sequences.
+// with E = ate_pct (ate) or consistency_pct + roughness_pct (consistency). An objective is the
+// mean over the sequences.
 constexpr double kFailureScore = 100.0;
 constexpr double kMinTracked = 0.95;
 constexpr double kTrackedWeight = 0.1;
 double sequence_score(TuneObjective o, const SeqResult& r);
+
+// Roughness of a trajectory without ground truth: the RMS of the second differences of the
+// consecutive positions (p[i+1] - 2 p[i] + p[i-1]) in % of the path length (sum of the steps):
+// tracking noise makes a camera path jagged; scale-free like ATE % of path. Empty for fewer
+// than 3 positions or a zero path.
+std::optional<double> trajectory_roughness_pct(const std::vector<Eigen::Vector3d>& positions);
 
 // Resumable results: one JSON object per line, keyed by a hash of everything that determines
 // the run (base configuration, sequence, frames, overrides). Lines that do not parse (a run

@@ -148,7 +148,9 @@ TEST(TuneObjective, ScoreFormula) {
   r.ate_pct = 0.5;
   r.consistency_pct = 0.2;
   EXPECT_DOUBLE_EQ(sequence_score(TuneObjective::kAte, r), 0.5);
-  EXPECT_DOUBLE_EQ(sequence_score(TuneObjective::kConsistency, r), 0.2);
+  EXPECT_EQ(sequence_score(TuneObjective::kConsistency, r), kFailureScore);  // no roughness
+  r.roughness_pct = 0.05;
+  EXPECT_DOUBLE_EQ(sequence_score(TuneObjective::kConsistency, r), 0.25);
   r.tracked_ratio_after_init = 0.75;  // 20 points short of 95%: + 0.1 * 20
   EXPECT_NEAR(sequence_score(TuneObjective::kAte, r), 2.5, 1e-12);
 }
@@ -161,6 +163,24 @@ TEST(TuneRanks, SpearmanAndKendall) {
   // Spearman of {1,2,3,4,5} vs {1,3,2,4,5}: 1 - 6 * 2 / (5 * 24) = 0.9
   EXPECT_NEAR(spearman(a, {1, 3, 2, 4, 5}), 0.9, 1e-12);
   EXPECT_EQ(spearman(a, {1, 1, 1, 1, 1}), 0.0);
+}
+
+TEST(TuneObjective, Roughness) {
+  // A straight line at constant speed: no roughness; path 4 m.
+  std::vector<Eigen::Vector3d> line;
+  for (int i = 0; i < 5; ++i) line.emplace_back(i, 0, 0);
+  ASSERT_TRUE(trajectory_roughness_pct(line).has_value());
+  EXPECT_NEAR(*trajectory_roughness_pct(line), 0.0, 1e-12);
+  // One position 0.1 m off: second differences 0.1, 0.2, 0.1 (m) over 3 triples; the path
+  // grows to 2 + 2 * sqrt(1.01).
+  line[2].y() = 0.1;
+  const double path = 2.0 + 2.0 * std::sqrt(1.01);
+  EXPECT_NEAR(*trajectory_roughness_pct(line), 100.0 * std::sqrt(0.06 / 3.0) / path, 1e-12);
+  // Scale-free: the same path 10 times larger has the same roughness.
+  std::vector<Eigen::Vector3d> big;
+  for (const auto& p : line) big.push_back(10.0 * p);
+  EXPECT_NEAR(*trajectory_roughness_pct(big), *trajectory_roughness_pct(line), 1e-12);
+  EXPECT_FALSE(trajectory_roughness_pct({line[0], line[1]}).has_value());
 }
 
 // A fake pipeline: the score is a smooth function of the overrides (best near threshold 2,
@@ -181,6 +201,7 @@ struct FakeEval {
     r.ate_pct = seq + std::pow(std::log(th / 2.0), 2) + 0.001 * std::fabs(kf - 20) +
                 (q.frames < 90 ? 0.01 : 0.0);
     r.consistency_pct = 0.5 * *r.ate_pct;
+    r.roughness_pct = 0.1 * *r.ate_pct;
     return r;
   }
   void operator()(const std::vector<EvalRequest>& reqs,
