@@ -50,39 +50,33 @@ TEST(TuneParams, DefaultsScaleLinearAndTypeFromTheKey) {
 }
 
 TEST(TuneParams, ErrorsNameTheKey) {
-  const std::string unknown = error_of("- {name: tracker.no_such_key, min: 1, max: 2}");
-  EXPECT_NE(unknown.find("tracker.no_such_key: unknown configuration key"), std::string::npos)
-      << unknown;
-  const std::string order = error_of("- {name: dynamic.tau_c, min: 30, max: 30}");
-  EXPECT_NE(order.find("dynamic.tau_c: min 30 >= max 30"), std::string::npos) << order;
-  const std::string log0 =
-      error_of("- {name: dynamic.histogram_threshold, min: 0, max: 1, scale: log}");
-  EXPECT_NE(log0.find("dynamic.histogram_threshold: log scale needs min > 0"), std::string::npos)
-      << log0;
-  const std::string type = error_of("- {name: tracker.m1, min: 40, max: 200, type: float}");
-  EXPECT_NE(type.find("tracker.m1: type: float, but the configuration key is an integer"),
-            std::string::npos)
-      << type;
-  const std::string range = error_of("- {name: matching.orb_local_ratio, min: 0.5, max: 7}");
-  EXPECT_NE(range.find("matching.orb_local_ratio: range [0.5, 7] is outside"), std::string::npos)
-      << range;
-  const std::string boolean = error_of("- {name: tracker.robust_per_frame, min: 0, max: 1}");
-  EXPECT_NE(boolean.find("tracker.robust_per_frame: not a numeric configuration key"),
-            std::string::npos)
-      << boolean;
-  const std::string dup =
-      error_of("- {name: tracker.m1, min: 40, max: 90}\n- {name: tracker.m1, min: 50, max: 60}");
-  EXPECT_NE(dup.find("tracker.m1: listed twice"), std::string::npos) << dup;
-  const std::string field = error_of("- {name: tracker.m1, min: 40, max: 90, step: 2}");
-  EXPECT_NE(field.find("unknown field 'step'"), std::string::npos) << field;
-  const std::string intb = error_of("- {name: tracker.m1, min: 40.5, max: 90}");
-  EXPECT_NE(intb.find("tracker.m1: type int needs integer min and max"), std::string::npos) << intb;
-  const std::string scale = error_of("- {name: tracker.m1, min: 40, max: 90, scale: cubic}");
-  EXPECT_NE(scale.find("tracker.m1: scale: 'cubic' is not linear or log"), std::string::npos)
-      << scale;
-  EXPECT_NE(error_of("name: tracker.m1").find("expected a non-empty list"), std::string::npos);
-  EXPECT_NE(error_of("- {name: tracker.m1, min: x, max: 90}").find("tracker.m1: min: 'x'"),
-            std::string::npos);
+  const std::pair<const char*, const char*> cases[] = {
+      {"- {name: tracker.no_such_key, min: 1, max: 2}",
+       "tracker.no_such_key: unknown configuration key"},
+      {"- {name: dynamic.tau_c, min: 30, max: 30}", "dynamic.tau_c: min 30 >= max 30"},
+      {"- {name: dynamic.histogram_threshold, min: 0, max: 1, scale: log}",
+       "dynamic.histogram_threshold: log scale needs min > 0"},
+      {"- {name: tracker.m1, min: 40, max: 200, type: float}",
+       "tracker.m1: type: float, but the configuration key is an integer"},
+      {"- {name: matching.orb_local_ratio, min: 0.5, max: 7}",
+       "matching.orb_local_ratio: range [0.5, 7] is outside"},
+      {"- {name: tracker.robust_per_frame, min: 0, max: 1}",
+       "tracker.robust_per_frame: not a numeric configuration key"},
+      {"- {name: tracker.m1, min: 40, max: 90}\n- {name: tracker.m1, min: 50, max: 60}",
+       "tracker.m1: listed twice"},
+      {"- {name: tracker.m1, min: 40, max: 90, step: 2}", "unknown field 'step'"},
+      {"- {name: tracker.m1, min: 40.5, max: 90}",
+       "tracker.m1: type int needs integer min and max"},
+      {"- {name: tracker.m1, min: 40, max: 90, scale: cubic}",
+       "tracker.m1: scale: 'cubic' is not linear or log"},
+      {"name: tracker.m1", "expected a non-empty list"},
+      {"- {name: tracker.m1, min: x, max: 90}", "tracker.m1: min: 'x' is not a number"},
+  };
+  for (const auto& [yaml, expected] : cases) {
+    const std::string e = error_of(yaml);
+    EXPECT_NE(e.find(expected), std::string::npos) << yaml << " -> " << e;
+    EXPECT_EQ(e.rfind("tune params t.yaml: ", 0), 0u) << e;  // names the file
+  }
 }
 
 std::vector<TuneParam> two_params() {
