@@ -441,14 +441,17 @@ std::vector<SeqResult> evaluate(const std::vector<EvalRequest>& reqs, const Eval
                                 ResultStore& store, TuneOutcome& out, const TuneProgress& progress,
                                 const std::string& what) {
   std::vector<EvalRequest> todo;
-  std::vector<std::string> seen;  // a batch may ask twice for the same run
+  std::vector<std::string> seen;  // a batch may ask twice for the same run (holdout: best = start)
   for (const auto& r : reqs) {
-    if (store.find(r.key) || std::find(seen.begin(), seen.end(), r.key) != seen.end()) continue;
+    if (std::find(seen.begin(), seen.end(), r.key) != seen.end()) continue;
     seen.push_back(r.key);
-    todo.push_back(r);
+    ++out.runs_total;
+    if (store.find(r.key)) {
+      ++out.runs_resumed;
+    } else {
+      todo.push_back(r);
+    }
   }
-  out.runs_total += static_cast<int>(reqs.size());
-  out.runs_resumed += static_cast<int>(reqs.size() - todo.size());
   if (progress) progress(0, todo.size(), what);
   if (!todo.empty()) {
     size_t finished = 0;

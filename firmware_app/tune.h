@@ -173,7 +173,7 @@ struct TuneOutcome {
   std::vector<CandidateScore> candidates;  // all sampled, by id
   int best = 0;                            // index into candidates
   std::vector<HoldoutRow> holdout;         // empty without holdout sequences
-  int runs_total = 0;                      // replays needed
+  int runs_total = 0;                      // distinct replays needed
   int runs_resumed = 0;                    // of them, found in the results file
 };
 
