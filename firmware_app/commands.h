@@ -16,5 +16,6 @@ int cmd_replay(int argc, char** argv);
 int cmd_vocab(int argc, char** argv);
 int cmd_view(int argc, char** argv);
 int cmd_map(int argc, char** argv);
+int cmd_tune(int argc, char** argv);
 
 }  // namespace rdslam

@@ -31,6 +31,8 @@ const Command kCommands[] = {
     {"view", "serve a live web view (image, 3D map, state) of rdslam's LCM output",
      rdslam::cmd_view},
     {"map", "saved maps: info (what a map file holds)", rdslam::cmd_map},
+    {"tune", "search configuration thresholds over sequences (random search, halving)",
+     rdslam::cmd_tune},
 };
 
 void print_help() {

@@ -1,0 +1,317 @@
+// The search behind `rdslam tune` (firmware_app/tune.h) without processes: the parameter-file
+// parser and its messages, the deterministic sampler, the successive-halving plan, the
+// objective formula, rank correlations, and the search loop with a fake evaluator:
+// determinism, halving, holdout rows and resuming from results.jsonl.
+#include "firmware_app/tune.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include "firmware_app/config.h"
+
+namespace rdslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string error_of(const std::string& yaml) {
+  try {
+    parse_tune_params(yaml, "t.yaml");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TuneParams, ParsesTheExampleFile) {
+  const auto ps = load_tune_params(std::string(RDSLAM_SOURCE_DIR) + "/docs/tune/example.yaml");
+  ASSERT_EQ(ps.size(), 4u);
+  EXPECT_EQ(ps[0].name, "parsac.inlier_threshold_px");
+  EXPECT_TRUE(ps[0].log_scale);
+  EXPECT_FALSE(ps[0].integer);
+  EXPECT_EQ(ps[2].name, "tracker.max_keyframe_interval");
+  EXPECT_TRUE(ps[2].integer);
+  EXPECT_DOUBLE_EQ(ps[2].min, 5.0);
+  EXPECT_DOUBLE_EQ(ps[2].max, 80.0);
+}
+
+TEST(TuneParams, DefaultsScaleLinearAndTypeFromTheKey) {
+  const auto ps = parse_tune_params(
+      "- {name: tracker.m1, min: 40, max: 200}\n- {name: dynamic.tau_c, min: 5, max: 50}\n", "t");
+  ASSERT_EQ(ps.size(), 2u);
+  EXPECT_TRUE(ps[0].integer);
+  EXPECT_FALSE(ps[0].log_scale);
+  EXPECT_FALSE(ps[1].integer);
+}
+
+TEST(TuneParams, ErrorsNameTheKey) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"- {name: tracker.no_such_key, min: 1, max: 2}",
+       "tracker.no_such_key: unknown configuration key"},
+      {"- {name: dynamic.tau_c, min: 30, max: 30}", "dynamic.tau_c: min 30 >= max 30"},
+      {"- {name: dynamic.histogram_threshold, min: 0, max: 1, scale: log}",
+       "dynamic.histogram_threshold: log scale needs min > 0"},
+      {"- {name: tracker.m1, min: 40, max: 200, type: float}",
+       "tracker.m1: type: float, but the configuration key is an integer"},
+      {"- {name: matching.orb_local_ratio, min: 0.5, max: 7}",
+       "matching.orb_local_ratio: range [0.5, 7] is outside"},
+      {"- {name: tracker.robust_per_frame, min: 0, max: 1}",
+       "tracker.robust_per_frame: not a numeric configuration key"},
+      {"- {name: tracker.m1, min: 40, max: 90}\n- {name: tracker.m1, min: 50, max: 60}",
+       "tracker.m1: listed twice"},
+      {"- {name: tracker.m1, min: 40, max: 90, step: 2}", "unknown field 'step'"},
+      {"- {name: tracker.m1, min: 40.5, max: 90}",
+       "tracker.m1: type int needs integer min and max"},
+      {"- {name: tracker.m1, min: 40, max: 90, scale: cubic}",
+       "tracker.m1: scale: 'cubic' is not linear or log"},
+      {"name: tracker.m1", "expected a non-empty list"},
+      {"- {name: tracker.m1, min: x, max: 90}", "tracker.m1: min: 'x' is not a number"},
+  };
+  for (const auto& [yaml, expected] : cases) {
+    const std::string e = error_of(yaml);
+    EXPECT_NE(e.find(expected), std::string::npos) << yaml << " -> " << e;
+    EXPECT_EQ(e.rfind("tune params t.yaml: ", 0), 0u) << e;  // names the file
+  }
+}
+
+std::vector<TuneParam> two_params() {
+  return parse_tune_params(
+      "- {name: parsac.inlier_threshold_px, min: 0.5, max: 12, scale: log}\n"
+      "- {name: tracker.max_keyframe_interval, min: 5, max: 80}\n",
+      "t");
+}
+
+TEST(TuneSampler, DeterministicInRangeAndStartFirst) {
+  const auto ps = two_params();
+  const auto a = sample_candidates(ps, {3.0, 200.0}, 50, 42);
+  const auto b = sample_candidates(ps, {3.0, 200.0}, 50, 42);
+  const auto c = sample_candidates(ps, {3.0, 200.0}, 50, 43);
+  ASSERT_EQ(a.size(), 50u);
+  EXPECT_DOUBLE_EQ(a[0].values[0], 3.0);
+  EXPECT_DOUBLE_EQ(a[0].values[1], 80.0);  // the start, clamped into the range
+  bool differs = false;
+  int below_geometric_mean = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].values, b[i].values);
+    differs = differs || a[i].values != c[i].values;
+    EXPECT_GE(a[i].values[0], 0.5);
+    EXPECT_LE(a[i].values[0], 12.0);
+    EXPECT_EQ(a[i].values[1], std::round(a[i].values[1]));
+    EXPECT_GE(a[i].values[1], 5.0);
+    EXPECT_LE(a[i].values[1], 80.0);
+    if (i > 0 && a[i].values[0] < std::sqrt(0.5 * 12.0)) ++below_geometric_mean;
+  }
+  EXPECT_TRUE(differs);
+  // Log scale: about half of the draws below the geometric mean (49 draws; loose bounds).
+  EXPECT_GT(below_geometric_mean, 12);
+  EXPECT_LT(below_geometric_mean, 37);
+  const auto ov = candidate_overrides(ps, a[0]);
+  ASSERT_EQ(ov.size(), 2u);
+  EXPECT_EQ(ov[0], "parsac.inlier_threshold_px=3");
+  EXPECT_EQ(ov[1], "tracker.max_keyframe_interval=80");
+}
+
+TEST(TunePlan, HalvingFitsTheBudget) {
+  const HalvingPlan p = plan_halving(24, 2, 120);
+  EXPECT_EQ(p.configs, (std::vector<int>{18, 6}));
+  EXPECT_EQ(p.frames, (std::vector<int>{40, 120}));
+  EXPECT_LE(p.evaluations(), 24);
+  const HalvingPlan q = plan_halving(40, 3, 270);
+  EXPECT_EQ(q.configs, (std::vector<int>{28, 9, 3}));
+  EXPECT_EQ(q.frames, (std::vector<int>{30, 90, 270}));
+  const HalvingPlan flat = plan_halving(5, 1, 0);
+  EXPECT_EQ(flat.configs, (std::vector<int>{5}));
+  EXPECT_EQ(flat.frames, (std::vector<int>{0}));
+  EXPECT_THROW(plan_halving(10, 2, 0), std::invalid_argument);
+  EXPECT_THROW(plan_halving(1, 1, 0), std::invalid_argument);
+}
+
+TEST(TuneObjective, ScoreFormula) {
+  SeqResult r;
+  EXPECT_EQ(sequence_score(TuneObjective::kAte, r), kFailureScore);  // did not run
+  r.ok = true;
+  EXPECT_EQ(sequence_score(TuneObjective::kAte, r), kFailureScore);  // never initialized
+  r.initialized = true;
+  r.tracked_ratio_after_init = 1.0;
+  EXPECT_EQ(sequence_score(TuneObjective::kAte, r), kFailureScore);  // no ATE
+  r.ate_pct = 0.5;
+  r.consistency_pct = 0.2;
+  EXPECT_DOUBLE_EQ(sequence_score(TuneObjective::kAte, r), 0.5);
+  EXPECT_EQ(sequence_score(TuneObjective::kConsistency, r), kFailureScore);  // no roughness
+  r.roughness_pct = 0.05;
+  EXPECT_DOUBLE_EQ(sequence_score(TuneObjective::kConsistency, r), 0.25);
+  r.tracked_ratio_after_init = 0.75;  // 20 points short of 95%: + 0.1 * 20
+  EXPECT_NEAR(sequence_score(TuneObjective::kAte, r), 2.5, 1e-12);
+}
+
+TEST(TuneRanks, SpearmanAndKendall) {
+  const std::vector<double> a = {1, 2, 3, 4, 5};
+  EXPECT_NEAR(spearman(a, {10, 20, 30, 40, 50}), 1.0, 1e-12);
+  EXPECT_NEAR(spearman(a, {5, 4, 3, 2, 1}), -1.0, 1e-12);
+  EXPECT_NEAR(kendall_tau(a, {1, 3, 2, 4, 5}), 0.8, 1e-12);  // 9 concordant, 1 discordant
+  // Spearman of {1,2,3,4,5} vs {1,3,2,4,5}: 1 - 6 * 2 / (5 * 24) = 0.9
+  EXPECT_NEAR(spearman(a, {1, 3, 2, 4, 5}), 0.9, 1e-12);
+  EXPECT_EQ(spearman(a, {1, 1, 1, 1, 1}), 0.0);
+}
+
+TEST(TuneObjective, Roughness) {
+  // A straight line at constant speed: no roughness; path 4 m.
+  std::vector<Eigen::Vector3d> line;
+  for (int i = 0; i < 5; ++i) line.emplace_back(i, 0, 0);
+  ASSERT_TRUE(trajectory_roughness_pct(line).has_value());
+  EXPECT_NEAR(*trajectory_roughness_pct(line), 0.0, 1e-12);
+  // One position 0.1 m off: second differences 0.1, 0.2, 0.1 (m) over 3 triples; the path
+  // grows to 2 + 2 * sqrt(1.01).
+  line[2].y() = 0.1;
+  const double path = 2.0 + 2.0 * std::sqrt(1.01);
+  EXPECT_NEAR(*trajectory_roughness_pct(line), 100.0 * std::sqrt(0.06 / 3.0) / path, 1e-12);
+  // Scale-free: the same path 10 times larger has the same roughness.
+  std::vector<Eigen::Vector3d> big;
+  for (const auto& p : line) big.push_back(10.0 * p);
+  EXPECT_NEAR(*trajectory_roughness_pct(big), *trajectory_roughness_pct(line), 1e-12);
+  EXPECT_FALSE(trajectory_roughness_pct({line[0], line[1]}).has_value());
+}
+
+// A fake pipeline: the score is a smooth function of the overrides (best near threshold 2,
+// keyframe interval 20), shorter runs are noisier but keep the order; counts the runs.
+struct FakeEval {
+  int* calls;
+  SeqResult result(const EvalRequest& q) const {
+    double th = 0, kf = 0;
+    for (const auto& o : q.overrides) {
+      const double v = std::stod(o.substr(o.find('=') + 1));
+      if (o.rfind("parsac.", 0) == 0) th = v;
+      if (o.rfind("tracker.", 0) == 0) kf = v;
+    }
+    SeqResult r;
+    r.ok = r.initialized = true;
+    r.tracked_ratio = r.tracked_ratio_after_init = 1.0;
+    const double seq = q.sequence == "synth:a" ? 0.1 : 0.2;
+    r.ate_pct = seq + std::pow(std::log(th / 2.0), 2) + 0.001 * std::fabs(kf - 20) +
+                (q.frames < 90 ? 0.01 : 0.0);
+    r.consistency_pct = 0.5 * *r.ate_pct;
+    r.roughness_pct = 0.1 * *r.ate_pct;
+    return r;
+  }
+  void operator()(const std::vector<EvalRequest>& reqs,
+                  const std::function<void(size_t, const SeqResult&)>& done) const {
+    for (size_t i = reqs.size(); i-- > 0;) {  // out of order, as parallel children finish
+      ++*calls;
+      done(i, result(reqs[i]));
+    }
+  }
+};
+
+TuneSetup fake_setup() {
+  TuneSetup s;
+  s.params = two_params();
+  s.start = {12.0, 80.0};
+  s.sequences = {"synth:a", "synth:b"};
+  s.holdout = {"synth:c"};
+  s.plan = plan_halving(12, 2, 90);  // 9 configs at 30 frames, 3 at 90
+  s.seed = 5;
+  s.base_identity = "base";
+  return s;
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path =
+        fs::temp_directory_path() /
+        ("rdslam-tune-test-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+         "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+TEST(TuneSearch, DeterministicHalvingAndHoldout) {
+  TempDir d1, d2;
+  int calls1 = 0, calls2 = 0;
+  ResultStore s1((d1.path / "r1.jsonl").string()), s2((d1.path / "r2.jsonl").string());
+  const TuneSetup setup = fake_setup();
+  const TuneOutcome a = run_tune(setup, FakeEval{&calls1}, s1, nullptr);
+  const TuneOutcome b = run_tune(setup, FakeEval{&calls2}, s2, nullptr);
+  EXPECT_EQ(calls1, 9 * 2 + 3 * 2 + 3 * 1);  // rung 1, rung 2, holdout (defaults, start, best)
+  EXPECT_EQ(calls1, calls2);
+  ASSERT_EQ(a.candidates.size(), 9u);
+  EXPECT_EQ(a.best, b.best);
+  for (size_t i = 0; i < a.candidates.size(); ++i) {
+    EXPECT_EQ(a.candidates[i].candidate.values, b.candidates[i].candidate.values);
+    EXPECT_EQ(a.candidates[i].objective, b.candidates[i].objective);
+  }
+  // The best is the rung-2 candidate with the lowest objective, and no rung-1-only candidate
+  // beats the promoted ones at rung 1.
+  int promoted = 0;
+  double worst_promoted_rung0 = 0, best_dropped_rung0 = 1e300;
+  for (const auto& c : a.candidates) {
+    if (c.rung == 1) {
+      ++promoted;
+      worst_promoted_rung0 = std::max(worst_promoted_rung0, c.rung0_objective);
+      EXPECT_LE(a.candidates[a.best].objective, c.objective);
+    } else {
+      best_dropped_rung0 = std::min(best_dropped_rung0, c.rung0_objective);
+    }
+  }
+  EXPECT_EQ(promoted, 3);
+  EXPECT_LE(worst_promoted_rung0, best_dropped_rung0);
+  // The bad start (threshold 12) is beaten.
+  EXPECT_LT(a.candidates[a.best].objective, a.candidates[0].rung0_objective);
+  ASSERT_EQ(a.holdout.size(), 3u);
+  EXPECT_EQ(a.holdout[0].label, "defaults");
+  EXPECT_EQ(a.holdout[2].label, "best");
+  EXPECT_LT(a.holdout[2].objective, a.holdout[1].objective);
+}
+
+TEST(TuneSearch, ResumesFromTheResultsFile) {
+  TempDir d;
+  const std::string path = (d.path / "results.jsonl").string();
+  const TuneSetup setup = fake_setup();
+  int full_calls = 0;
+  TuneOutcome full;
+  {
+    ResultStore store(path);
+    full = run_tune(setup, FakeEval{&full_calls}, store, nullptr);
+  }
+  // Everything done: a restart runs nothing and finds the same best.
+  {
+    int calls = 0;
+    ResultStore store(path);
+    EXPECT_EQ(store.loaded(), static_cast<size_t>(full_calls));
+    const TuneOutcome again = run_tune(setup, FakeEval{&calls}, store, nullptr);
+    EXPECT_EQ(calls, 0);
+    EXPECT_EQ(again.best, full.best);
+    EXPECT_EQ(again.runs_resumed, again.runs_total);
+  }
+  // Killed after 7 runs, in the middle of writing the 8th line: a restart runs the rest only.
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  in.close();
+  {
+    std::ofstream out(path, std::ios::trunc);
+    for (int i = 0; i < 7; ++i) out << lines[static_cast<size_t>(i)] << "\n";
+    out << lines[7].substr(0, lines[7].size() / 2);  // no newline: cut short
+  }
+  int calls = 0;
+  ResultStore store(path);
+  EXPECT_EQ(store.loaded(), 7u);
+  // The cut line has no newline: the next append must start on a new line to stay parseable.
+  const TuneOutcome resumed = run_tune(setup, FakeEval{&calls}, store, nullptr);
+  EXPECT_EQ(calls, full_calls - 7);
+  EXPECT_EQ(resumed.best, full.best);
+  EXPECT_EQ(resumed.candidates[static_cast<size_t>(resumed.best)].objective,
+            full.candidates[static_cast<size_t>(full.best)].objective);
+  ResultStore reread(path);
+  EXPECT_EQ(reread.loaded(), static_cast<size_t>(full_calls));
+}
+
+}  // namespace
+}  // namespace rdslam
