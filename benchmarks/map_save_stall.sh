@@ -5,8 +5,8 @@
 # saves (map.save_period_s; 0 = none) and a mapper nice value, and prints per run: saves done,
 # requests coalesced, frames processed and dropped, tracker p50/p99 (the run's total stats
 # line), the median time a save took on the mapper thread (the whole save before the map
-# writer thread, the copy since) and on the writer thread, and the 1-min load average before
-# the run. A measurement, not a CI test.
+# writer thread, the copy since) and on the writer thread (wall and CPU), and the 1-min load
+# average before the run. A measurement, not a CI test.
 #
 # Usage: benchmarks/map_save_stall.sh [-b RDSLAM] [-r REPEATS] [-s SPEED] [-c CONFIGS] [OUT_DIR]
 #   -c CONFIGS  "period nice" pairs separated by commas (default "0 0,0.5 0,3 0,0 10,0.5 10")
@@ -27,9 +27,9 @@ out="${1:-}"
 out="${out:-$(mktemp -d /tmp/map_save_stall.XXXXXX)}"
 mkdir -p "$out"
 IFS=, read -r -a cfgs <<<"$configs"
-median() { sort -n | awk '{v[NR]=$1} END {if (NR) printf "%.0f", v[int((NR+1)/2)]; else printf "-"}'; }
-printf '%-8s %-6s %-3s %6s %9s %7s %8s %16s %10s %10s %6s\n' period nice rep saves coalesced \
-  frames dropped "trk p50/p99 ms" "mapper ms" "writer ms" load
+median() { sort -n | awk '{v[NR]=$1} END {if (NR) printf "%.1f", v[int((NR+1)/2)]; else printf "-"}'; }
+printf '%-8s %-6s %-3s %6s %9s %7s %8s %16s %10s %10s %10s %6s\n' period nice rep saves \
+  coalesced frames dropped "trk p50/p99 ms" "mapper ms" "writer ms" "writer cpu" load
 for rep in $(seq 1 "$repeats"); do
   for cfg in "${cfgs[@]}"; do
     read -r period nice <<<"$cfg"
@@ -52,7 +52,10 @@ for rep in $(seq 1 "$repeats"); do
         grep -o '[0-9.]*') | median || true)
     writer_ms=$( (grep 'mapper: map saved' "$log" | grep -o 'write [0-9.]* ms' | cut -d' ' -f2) |
       median || true)
-    printf '%-8s %-6s %-3s %6s %9s %7s %8s %16s %10s %10s %6s\n' "$period" "$nice" "$rep" \
-      "$saves" "${coalesced:--}" "$frames" "$dropped" "$trk" "$mapper_ms" "$writer_ms" "$load"
+    writer_cpu=$( (grep 'mapper: map saved' "$log" | grep -o '([0-9.]* ms CPU)' | grep -o '[0-9.]*') |
+      median || true)
+    printf '%-8s %-6s %-3s %6s %9s %7s %8s %16s %10s %10s %10s %6s\n' "$period" "$nice" "$rep" \
+      "$saves" "${coalesced:--}" "$frames" "$dropped" "$trk" "$mapper_ms" "$writer_ms" \
+      "$writer_cpu" "$load"
   done
 done

@@ -82,14 +82,19 @@ bool run_map_save_job(const MapSaveJob& job) {
   std::string err;
   MapInfo info;
   double ms = 0.0;
-  if (save_map_file(job.map, job.camera, job.features, job.path, job.keep, &err, &info, &ms,
-                    job.saved_unix_s)) {
+  timespec c0{}, c1{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+  const bool ok = save_map_file(job.map, job.camera, job.features, job.path, job.keep, &err, &info,
+                                &ms, job.saved_unix_s);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
+  const double cpu_ms = (c1.tv_sec - c0.tv_sec) * 1e3 + (c1.tv_nsec - c0.tv_nsec) * 1e-6;
+  if (ok) {
     if (job.link) job.link->saves_done.fetch_add(1, std::memory_order_relaxed);
     RDSLAM_LOG_INFO(
         "mapper: map saved to %s (%d keyframes, %d points, %.1f MiB; copy %.1f ms on the mapper "
-        "thread, encode and write %.0f ms on the map writer thread)",
-        job.path.c_str(), info.keyframes, info.points, info.file_bytes / 1048576.0, job.copy_ms,
-        ms);
+        "thread, encode and write %.0f ms (%.0f ms CPU) on the map writer thread)",
+        job.path.c_str(), info.keyframes, info.points, info.file_bytes / 1048576.0, job.copy_ms, ms,
+        cpu_ms);
     return true;
   }
   if (job.link) job.link->saves_failed.fetch_add(1, std::memory_order_relaxed);

@@ -221,9 +221,15 @@ int cmd_run(int argc, char** argv) {
                     static_cast<unsigned long long>(commands->malformed()));
   }
   if (can_save) {
-    RDSLAM_LOG_INFO("run: map saves while running: %u written, %u failed, %u coalesced",
-                    slam.link->saves_done.load(), slam.link->saves_failed.load(),
-                    slam.link->saves_coalesced.load());
+    // Requests still waiting for the writer when the pipeline stopped: the final save (or
+    // none, without map.save_on_shutdown) is the last word on them.
+    const SlamLink& l = *slam.link;
+    const uint32_t served = l.saves_done + l.saves_failed + l.saves_coalesced;
+    RDSLAM_LOG_INFO(
+        "run: map saves while running: %u requested, %u written, %u failed, %u coalesced, %u "
+        "pending at the end",
+        l.save_requests.load(), l.saves_done.load(), l.saves_failed.load(),
+        l.saves_coalesced.load(), l.save_requests - std::min(l.save_requests.load(), served));
   }
   if (can_save && cfg.map.save_on_shutdown) {
     // Every thread has stopped: the map is saved from this thread.
