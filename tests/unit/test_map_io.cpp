@@ -379,18 +379,35 @@ class HeldWriter : public MapSaveWriter {
   int submitted = 0;
 };
 
+// A mapper holding make_map() (as loaded from its file), saving to `name` in a scratch directory
+// through `writer`, with one save requested and the mapper's step that serves it done.
+struct SavingMapper {
+  SavingMapper(const char* name, MapSaveWriter* writer)
+      : m(make_map()),
+        link(std::make_shared<SlamLink>(2)),
+        mapper(MapperParams{}, orb(), camera(), link),
+        dir("mapio"),
+        path((dir.path() / name).string()) {
+    mapper.load(decode_map(encoded(m)));
+    mapper.set_save_target(path, 1);
+    mapper.set_save_writer(writer);
+    link->save_requests.fetch_add(1);
+    mapper.step(0);
+  }
+  const Map m;
+  std::shared_ptr<SlamLink> link;
+  Mapper mapper;
+  ScratchDir dir;
+  const std::string path;
+};
+
 TEST(MapIo, MapperHandsSavesToTheWriterAndCoalescesRequestsWhileItIsBusy) {
-  const Map m = make_map();
-  auto link = std::make_shared<SlamLink>(2);
-  Mapper mapper(MapperParams{}, orb(), camera(), link);
-  mapper.load(decode_map(encoded(m)));
-  ScratchDir dir("mapio");
-  const std::string path = (dir.path() / "bg.map").string();
   HeldWriter writer;
-  mapper.set_save_target(path, 1);
-  mapper.set_save_writer(&writer);
-  link->save_requests.fetch_add(1);
-  mapper.step(0);
+  SavingMapper sm("bg.map", &writer);
+  const Map& m = sm.m;
+  const auto& link = sm.link;
+  Mapper& mapper = sm.mapper;
+  const std::string& path = sm.path;
   ASSERT_EQ(writer.submitted, 1);
   EXPECT_FALSE(fs::exists(path));  // the mapper thread only copied the map
   EXPECT_EQ(writer.job->path, path);
@@ -415,7 +432,7 @@ TEST(MapIo, MapperHandsSavesToTheWriterAndCoalescesRequestsWhileItIsBusy) {
   mapper.step(0);
   EXPECT_EQ(writer.submitted, 2);
   // A job that cannot be written is counted as failed.
-  writer.job->path = (dir.path() / "no/such/dir.map").string();
+  writer.job->path = (sm.dir.path() / "no/such/dir.map").string();
   EXPECT_FALSE(run_map_save_job(*writer.job));
   EXPECT_EQ(link->saves_failed.load(), 1u);
 }
@@ -423,23 +440,15 @@ TEST(MapIo, MapperHandsSavesToTheWriterAndCoalescesRequestsWhileItIsBusy) {
 TEST(MapIo, MapWriterThreadWritesTheMappersCopyAndFinishesItOnStop) {
   // `rdslam run`'s writer thread (firmware_app/map_writer.h) behind the mapper: a request makes
   // a copy, the thread writes it, stop() waits for the write.
-  const Map m = make_map();
-  auto link = std::make_shared<SlamLink>(2);
-  Mapper mapper(MapperParams{}, orb(), camera(), link);
-  mapper.load(decode_map(encoded(m)));
-  ScratchDir dir("mapio");
-  const std::string path = (dir.path() / "thread.map").string();
   MapWriter writer({}, 19);
-  mapper.set_save_target(path, 1);
-  mapper.set_save_writer(&writer);
-  link->save_requests.fetch_add(1);
-  mapper.step(0);
+  SavingMapper sm("thread.map", &writer);
   writer.stop();
+  const auto& link = sm.link;
   EXPECT_FALSE(writer.busy());
   EXPECT_EQ(writer.jobs_run(), 1u);
   EXPECT_EQ(link->saves_done.load(), 1u);
-  const std::vector<uint8_t> written = read_map_file(path);
-  EXPECT_EQ(written, encode_map(decode_map(encoded(m)), camera(), orb(), nullptr,
+  const std::vector<uint8_t> written = read_map_file(sm.path);
+  EXPECT_EQ(written, encode_map(decode_map(encoded(sm.m)), camera(), orb(), nullptr,
                                 decode_map_info(written).saved_unix_s));
 }
 
