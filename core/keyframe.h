@@ -91,6 +91,9 @@ struct SlamLink {
   std::atomic<bool> localize_only{false};
   std::atomic<uint32_t> save_requests{0}, saves_done{0}, saves_failed{0};
   std::atomic<uint32_t> reset_requests{0};
+  // Save requests served by a save that was already due (requests made while a save was in
+  // progress, or several between two mapper steps): one map file for all of them.
+  std::atomic<uint32_t> saves_coalesced{0};
 };
 
 }  // namespace rdslam

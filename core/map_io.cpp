@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <ctime>
@@ -258,7 +259,8 @@ std::string dir_of(const std::string& path) {
 }  // namespace
 
 std::vector<uint8_t> encode_map(const Map& map, const CameraModel& camera,
-                                const FeatureParams& features, MapInfo* info) {
+                                const FeatureParams& features, MapInfo* info,
+                                int64_t saved_unix_s) {
   const Selection s = select(map);
   const int desc_bytes = features.descriptor_bytes();
   Writer w;
@@ -269,7 +271,7 @@ std::vector<uint8_t> encode_map(const Map& map, const CameraModel& camera,
   w.pod(static_cast<int32_t>(desc_bytes));
   w.pod(static_cast<int32_t>(features.levels));
   w.pod(features.scale_factor);
-  const int64_t saved = static_cast<int64_t>(std::time(nullptr));
+  const int64_t saved = saved_unix_s >= 0 ? saved_unix_s : static_cast<int64_t>(std::time(nullptr));
   w.pod(saved);
   w.pod(static_cast<int64_t>(s.kfs.size()));
   w.pod(static_cast<int64_t>(s.points.size()));
@@ -346,6 +348,45 @@ std::vector<uint8_t> encode_map(const Map& map, const CameraModel& camera,
   mi.file_bytes = out.size();
   if (info) *info = mi;
   return out;
+}
+
+Map copy_map_for_save(const Map& map) {
+  const Selection s = select(map);
+  Map out;
+  out.next_point_id = map.next_point_id;
+  out.next_kf_id = map.next_kf_id;
+  out.kf_seq = map.kf_seq;
+  for (const Keyframe* k : s.kfs) {
+    Keyframe& c = out.keyframes[k->id];
+    c.id = k->id;
+    c.stamp_ns = k->stamp_ns;
+    c.T_cam_world = k->T_cam_world;
+    c.features.copy_from(k->features);  // deep: the owner's buffers are reused in place
+    c.point_of = k->point_of;
+    c.valid = k->valid;
+    c.image = k->image.clone();  // deep, for the same reason
+    c.fixed = k->fixed;
+  }
+  out.points.reserve(s.points.size());
+  for (const MapPoint* p : s.points) out.points.emplace(p->id, *p);
+  return out;
+}
+
+bool save_map_file(const Map& map, const CameraModel& camera, const FeatureParams& features,
+                   const std::string& path, int keep, std::string* error, MapInfo* info, double* ms,
+                   int64_t saved_unix_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const std::vector<uint8_t> bytes = encode_map(map, camera, features, info, saved_unix_s);
+    write_map_file_atomic(path, bytes, keep);
+  } catch (const std::exception& e) {
+    if (error) *error = e.what();
+    return false;
+  }
+  if (ms) {
+    *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+  return true;
 }
 
 namespace {

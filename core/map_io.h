@@ -27,8 +27,14 @@
 // or the new one, never a broken one. With keep > 1 the previous maps are kept as FILE.1 ..
 // FILE.(keep-1) (hard links, so FILE itself is never missing).
 //
-// Ownership: plain values in and out. Threads: any; encode_map reads a Map that the caller
-// owns (the mapper thread, core/mapper.h). Plain file I/O only (no devices, no threads).
+// Saving while running (issue 24, core/mapper.h MapSaveWriter): the thread that owns the map
+// takes copy_map_for_save() (a deep copy of exactly what encode_map writes) and another,
+// low-priority thread encodes and writes that copy with save_map_file(); the file is the one
+// encode_map would have made of the map at the time of the copy, byte for byte.
+//
+// Ownership: plain values in and out. Threads: any; encode_map and copy_map_for_save read a
+// Map that the caller owns (the mapper thread, core/mapper.h), or a copy the caller owns.
+// Plain file I/O only (no devices, no threads).
 // Allocates: start-up, shutdown and save requests, never per frame.
 #pragma once
 
@@ -71,9 +77,17 @@ struct MapInfo {
 };
 
 // Serialises the valid part of `map` (see the header comment) with the camera and feature
-// settings it was made with. `info` (optional) receives the counts written.
+// settings it was made with. `info` (optional) receives the counts written. The header's save
+// time is `saved_unix_s`, or the wall clock now when it is negative.
 std::vector<uint8_t> encode_map(const Map& map, const CameraModel& camera,
-                                const FeatureParams& features, MapInfo* info = nullptr);
+                                const FeatureParams& features, MapInfo* info = nullptr,
+                                int64_t saved_unix_s = -1);
+
+// The part of `map` that encode_map writes, deep-copied (keyframe features and images included:
+// nothing is shared with `map`, which its owner may change right after): the valid keyframes,
+// the saved points and the id counters. encode_map of the copy equals encode_map of `map`
+// (same saved_unix_s). Costs memory copies only (no image encoding); tests/unit/test_map_io.cpp.
+Map copy_map_for_save(const Map& map);
 
 // Validates and decodes a whole map file's bytes. Throws MapFormatError.
 Map decode_map(const std::vector<uint8_t>& bytes, MapInfo* info = nullptr);
@@ -94,5 +108,11 @@ std::vector<uint8_t> read_map_file(const std::string& path);
 // then and the temporary file removed.
 void write_map_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes,
                            int keep = 1);
+
+// encode_map + write_map_file_atomic. False with *error set when either failed (the previous
+// file is untouched then); `info` (optional) receives what was written, `*ms` the time taken.
+bool save_map_file(const Map& map, const CameraModel& camera, const FeatureParams& features,
+                   const std::string& path, int keep, std::string* error, MapInfo* info = nullptr,
+                   double* ms = nullptr, int64_t saved_unix_s = -1);
 
 }  // namespace rdslam

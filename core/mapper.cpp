@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <set>
 #include <unordered_set>
 
@@ -74,18 +75,31 @@ void Mapper::load(Map&& map) {
 
 bool Mapper::save(const std::string& path, int keep, std::string* error, MapInfo* info,
                   double* ms) {
-  const auto t0 = std::chrono::steady_clock::now();
-  try {
-    const std::vector<uint8_t> bytes = encode_map(map_, camera_, fparams_, info);
-    write_map_file_atomic(path, bytes, keep);
-  } catch (const std::exception& e) {
-    if (error) *error = e.what();
-    return false;
+  return save_map_file(map_, camera_, fparams_, path, keep, error, info, ms);
+}
+
+bool run_map_save_job(const MapSaveJob& job) {
+  std::string err;
+  MapInfo info;
+  double ms = 0.0;
+  timespec c0{}, c1{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+  const bool ok = save_map_file(job.map, job.camera, job.features, job.path, job.keep, &err, &info,
+                                &ms, job.saved_unix_s);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
+  const double cpu_ms = (c1.tv_sec - c0.tv_sec) * 1e3 + (c1.tv_nsec - c0.tv_nsec) * 1e-6;
+  if (ok) {
+    if (job.link) job.link->saves_done.fetch_add(1, std::memory_order_relaxed);
+    RDSLAM_LOG_INFO(
+        "mapper: map saved to %s (%d keyframes, %d points, %.1f MiB; copy %.1f ms on the mapper "
+        "thread, encode and write %.0f ms (%.0f ms CPU) on the map writer thread)",
+        job.path.c_str(), info.keyframes, info.points, info.file_bytes / 1048576.0, job.copy_ms, ms,
+        cpu_ms);
+    return true;
   }
-  if (ms) {
-    *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  }
-  return true;
+  if (job.link) job.link->saves_failed.fetch_add(1, std::memory_order_relaxed);
+  RDSLAM_LOG_ERROR("mapper: map not saved: %s", err.c_str());
+  return false;
 }
 
 void Mapper::serve_save_requests() {
@@ -93,7 +107,27 @@ void Mapper::serve_save_requests() {
   // thread, which owns the map; the tracker keeps tracking on the last published snapshot.
   const uint32_t want = link_->save_requests.load(std::memory_order_acquire);
   if (want == saves_served_) return;
+  const bool handoff = save_writer_ != nullptr && !save_path_.empty();
+  if (handoff && save_writer_->busy()) return;  // served by the next copy (coalesced)
+  if (want - saves_served_ > 1) {
+    link_->saves_coalesced.fetch_add(want - saves_served_ - 1, std::memory_order_relaxed);
+  }
   saves_served_ = want;
+  if (handoff) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto job = std::make_unique<MapSaveJob>();
+    job->map = copy_map_for_save(map_);
+    job->camera = camera_;
+    job->features = fparams_;
+    job->path = save_path_;
+    job->keep = save_keep_;
+    job->saved_unix_s = static_cast<int64_t>(std::time(nullptr));
+    job->link = link_;
+    job->copy_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    save_writer_->submit(std::move(job));
+    return;
+  }
   std::string err = save_path_.empty() ? "no map file configured" : "";
   MapInfo info;
   double ms = 0.0;

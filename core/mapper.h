@@ -83,6 +83,35 @@
 
 namespace rdslam {
 
+// A map save handed off by the mapper thread (Mapper::set_save_writer): a deep copy of what
+// the file will hold (core/map_io.h copy_map_for_save), where it goes, and the link whose
+// counters (saves_done, saves_failed) the writer updates.
+struct MapSaveJob {
+  Map map;
+  CameraModel camera;
+  FeatureParams features;
+  std::string path;
+  int keep = 1;
+  int64_t saved_unix_s = 0;  // when the copy was taken (the file's save time)
+  double copy_ms = 0.0;      // the copy's time on the mapper thread
+  std::shared_ptr<SlamLink> link;
+};
+
+// Encodes and writes `job` on the calling thread (PNG encoding of the keyframe images, CRC,
+// fsync'ed atomic write), counts the outcome in job.link and logs it. True when written.
+bool run_map_save_job(const MapSaveJob& job);
+
+// Where the mapper thread hands save jobs (implemented outside core/, which creates no
+// threads: firmware_app/map_writer.h runs them on a low-priority thread). One job at a time:
+// the mapper calls submit() only when busy() is false. Threads: busy() and submit() from the
+// mapper thread.
+class MapSaveWriter {
+ public:
+  virtual ~MapSaveWriter() = default;
+  virtual bool busy() const = 0;
+  virtual void submit(std::unique_ptr<MapSaveJob> job) = 0;
+};
+
 struct MapperParams {
   int m2 = 50;                      // paper Sec. 4: new points a keyframe must contribute
   int related_keyframes = 5;        // paper Sec. 4: the 5 most related keyframes
@@ -171,6 +200,13 @@ class Mapper {
     save_path_ = path;
     save_keep_ = keep;
   }
+  // With a writer (not owned; it must outlive the mapper thread), step() serves a save request
+  // by copying the map (copy_map_for_save, memory copies only) and handing the copy to the
+  // writer, which encodes and writes it on its own thread; requests made while the writer is
+  // busy wait and are served together by one copy once it is free (SlamLink::saves_coalesced).
+  // Without one (nullptr, the default) step() encodes and writes on the mapper thread. Call
+  // before the first step().
+  void set_save_writer(MapSaveWriter* writer) { save_writer_ = writer; }
   // Diagnostics (tests): every invalidation from now on is appended to `log` (nullptr: off).
   void set_invalidation_log(std::vector<InvalidationRecord>* log) { inval_log_ = log; }
   // Diagnostics: every Algorithm 1 verdict (core/map_updater.h CheckRecord); tests only.
@@ -284,6 +320,7 @@ class Mapper {
   std::string save_path_;
   int save_keep_ = 1;
   uint32_t saves_served_ = 0;
+  MapSaveWriter* save_writer_ = nullptr;
 };
 
 }  // namespace rdslam

@@ -102,6 +102,7 @@ SlamStages make_slam_stages(const SlamParams& params, const CameraModel& camera,
   auto tracker = std::make_unique<TrackerStageImpl>(params, camera, link);
   auto mapper = std::make_unique<MapperStageImpl>(params, camera, link);
   mapper->mapper().set_save_target(start.save_path, start.save_keep);
+  mapper->mapper().set_save_writer(start.save_writer);
   if (start.prior) {
     mapper->mapper().load(std::move(*start.prior));
     tracker->start_with_map();

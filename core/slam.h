@@ -54,6 +54,9 @@ struct SlamStart {
   bool localize_only = false;
   std::string save_path;
   int save_keep = 1;
+  // Saves requested while running are encoded and written by this writer's thread (not
+  // owned; outlives the stages' threads); nullptr: on the mapper thread (core/mapper.h).
+  MapSaveWriter* save_writer = nullptr;
 };
 
 // The link between a tracker and a mapper (core/keyframe.h); in ORB mode with the place

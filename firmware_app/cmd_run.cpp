@@ -16,6 +16,7 @@
 #include "firmware_app/lcm_commands.h"
 #include "firmware_app/lcm_publisher.h"
 #include "firmware_app/map_files.h"
+#include "firmware_app/map_writer.h"
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
 #include "firmware_app/service_notify.h"
@@ -106,6 +107,7 @@ int cmd_run(int argc, char** argv) {
   // The SLAM system, or the pass-through stages (ground truth) for testing consumers.
   std::unique_ptr<PassthroughStages> passthrough;
   SlamStages slam;
+  std::unique_ptr<MapWriter> map_writer;  // saves while running (firmware_app/map_writer.h)
   TrackerStage* tracker = nullptr;
   MapperStage* mapper = nullptr;
   if (cfg.pipeline.stages == "passthrough" && !prior_map_path.empty()) {
@@ -123,6 +125,10 @@ int cmd_run(int argc, char** argv) {
     SlamStart start;
     start.save_path = cfg.map.save_path;
     start.save_keep = cfg.map.keep;
+    if (!cfg.map.save_path.empty()) {
+      map_writer = std::make_unique<MapWriter>(cfg.threads.mapper.cores, cfg.map.writer_nice);
+      start.save_writer = map_writer.get();
+    }
     if (!prior_map_path.empty()) {
       MapInfo mi;
       prior = load_prior_map(prior_map_path, camera, cfg.slam.features, &mi);
@@ -200,6 +206,7 @@ int cmd_run(int argc, char** argv) {
   }
   notify.stopping("end of stream");  // no-op after a signal
   pipeline.join();
+  if (map_writer) map_writer->stop();  // a save in progress is finished before the last one
   if (viewer) viewer->stop();
   const PipelineStatus s = pipeline.status();
   RDSLAM_LOG_INFO("run: %s after %llu frames (%llu dropped); %llu poses published",
@@ -212,6 +219,17 @@ int cmd_run(int argc, char** argv) {
                     static_cast<unsigned long long>(commands->accepted()),
                     static_cast<unsigned long long>(commands->rejected()),
                     static_cast<unsigned long long>(commands->malformed()));
+  }
+  if (can_save) {
+    // Requests still waiting for the writer when the pipeline stopped: the final save (or
+    // none, without map.save_on_shutdown) is the last word on them.
+    const SlamLink& l = *slam.link;
+    const uint32_t served = l.saves_done + l.saves_failed + l.saves_coalesced;
+    RDSLAM_LOG_INFO(
+        "run: map saves while running: %u requested, %u written, %u failed, %u coalesced, %u "
+        "pending at the end",
+        l.save_requests.load(), l.saves_done.load(), l.saves_failed.load(),
+        l.saves_coalesced.load(), l.save_requests - std::min(l.save_requests.load(), served));
   }
   if (can_save && cfg.map.save_on_shutdown) {
     // Every thread has stopped: the map is saved from this thread.

@@ -9,6 +9,9 @@ void MapFileParams::visit(ParamVisitor& v) {
   v.field("save_period_s", save_period_s, 0.0, 86400.0,
           "also save every this many seconds while running (0: off)");
   v.field("keep", keep, 1, 100, "map versions kept: FILE, FILE.1 .. FILE.(keep-1)");
+  v.field("writer_nice", writer_nice, 0, 19,
+          "nice value of the thread that encodes and writes the saves made while running (on "
+          "the mapper's cores)");
 }
 
 Map load_prior_map(const std::string& path, const CameraModel& camera,

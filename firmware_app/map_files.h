@@ -20,6 +20,7 @@ struct MapFileParams {
   bool save_on_shutdown = true;  // at the end of the run (source ended, SIGINT/SIGTERM)
   double save_period_s = 0.0;    // > 0: also every this many seconds while running
   int keep = 1;                  // versions kept: FILE, FILE.1 .. FILE.(keep-1)
+  int writer_nice = 19;          // nice of the thread that encodes and writes saves while running
   void visit(ParamVisitor& v);
 };
 

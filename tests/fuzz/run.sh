@@ -10,7 +10,8 @@
 #               (default build-fuzz)
 #   -t SECONDS  libFuzzer's -max_total_time per target (default 10; docs/reliability.md has
 #               the longer run)
-#   TARGET      fuzz_config fuzz_dataset_index fuzz_trajectory fuzz_mjpeg fuzz_lcm (default all)
+#   TARGET      fuzz_config fuzz_dataset_index fuzz_trajectory fuzz_mjpeg fuzz_lcm fuzz_map
+#               (default all)
 #
 # Only each target's parser sources are compiled with clang and instrumented
 # (-fsanitize=fuzzer,address,undefined: coverage feedback and the checks cover the parser);
@@ -27,12 +28,12 @@ while getopts "b:o:t:h" opt; do
     b) build=$OPTARG ;;
     o) out=$OPTARG ;;
     t) seconds=$OPTARG ;;
-    *) sed -n '2,20p' "$0"; exit 2 ;;
+    *) sed -n '2,21p' "$0"; exit 2 ;;
   esac
 done
 shift $((OPTIND - 1))
 targets=("$@")
-((${#targets[@]})) || targets=(fuzz_config fuzz_dataset_index fuzz_trajectory fuzz_mjpeg fuzz_lcm)
+((${#targets[@]})) || targets=(fuzz_config fuzz_dataset_index fuzz_trajectory fuzz_mjpeg fuzz_lcm fuzz_map)
 
 command -v clang++ >/dev/null || { echo "fuzz: clang++ missing (toolchain/install-deps.sh)" >&2; exit 1; }
 for lib in core/librdslam_core.a drivers/librdslam_drivers.a firmware_app/librdslam_app.a; do
@@ -62,7 +63,11 @@ declare -A sources=(
   [fuzz_trajectory]="core/trajectory.cpp core/trajectory_eval.cpp core/timestamp.cpp"
   [fuzz_mjpeg]="drivers/mjpeg_decoder.cpp"
   [fuzz_lcm]="drivers/lcm_image_source.cpp drivers/mjpeg_decoder.cpp"
+  [fuzz_map]="core/map_io.cpp"
 )
+
+# libFuzzer's -max_len: 64 KiB, but a map seed (a short synthetic run's 3 keyframes) is 66 KB.
+declare -A max_len=([fuzz_map]=131072)
 
 # One target: compile, then fuzz; the verdict goes to OUT/<target>/verdict.
 run_target() {
@@ -79,7 +84,8 @@ run_target() {
   t1=$(date +%s)
   # The committed seeds stay read-only; new inputs go to OUT/<target>/corpus.
   if ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-    "$out/bin/$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+    "$out/bin/$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+      -max_len="${max_len[$t]:-65536}" \
       -print_final_stats=1 -artifact_prefix="$out/$t/" "$out/$t/corpus" "tests/fuzz/corpus/$t" \
       >"$out/$t/log.txt" 2>&1; then
     runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$out/$t/log.txt" | grep -o '[0-9]*$' || true)

@@ -1,6 +1,7 @@
 // Map files (core/map_io.h): round trip, what is not saved, every kind of damage refused with a
 // clear message, camera / feature-mode mismatches, atomic writes that leave the previous file
-// when they fail, kept versions, and the mapper's load/save.
+// when they fail, kept versions, the mapper's load/save, and saves while running (a copy on
+// the mapper thread, written by the writer thread of firmware_app/map_writer.h).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/resource.h>
@@ -14,6 +15,7 @@
 #include "core/keyframe.h"
 #include "core/map_io.h"
 #include "core/mapper.h"
+#include "firmware_app/map_writer.h"
 #include "tests/support/run_command.h"
 
 namespace rdslam {
@@ -337,6 +339,117 @@ TEST(MapIo, MapperLoadsPublishesAndSavesTheMap) {
   mapper.step(0);
   EXPECT_EQ(link->saves_done.load(), 1u);
   EXPECT_TRUE(fs::exists(path + ".1"));
+}
+
+TEST(MapIo, CopyForSaveEncodesToTheSameBytesAndSharesNothing) {
+  // A save while running encodes a copy on another thread (core/mapper.h MapSaveWriter): the
+  // copy must give the file the map itself gives, and stay so while the owner changes the map.
+  Map m = make_map(5, 120);
+  constexpr int64_t kSaved = 1700000000;
+  const std::vector<uint8_t> direct = encode_map(m, camera(), orb(), nullptr, kSaved);
+  const Map copy = copy_map_for_save(m);
+  EXPECT_EQ(copy.keyframes.size(), 4u);  // keyframe 2 is invalid: not copied
+  EXPECT_LT(copy.points.size(), m.points.size());
+  EXPECT_EQ(encode_map(copy, camera(), orb(), nullptr, kSaved), direct);
+  // The owner writes into its buffers in place (Features::copy_from, Mat::copyTo reuse them).
+  for (auto& [id, kf] : m.keyframes) {
+    kf.image.setTo(cv::Scalar::all(id));
+    kf.features.desc.setTo(cv::Scalar::all(0xA5));
+    kf.features.kps[0].pt.x += 3.f;
+    kf.T_cam_world.t.x() += 1.0;
+  }
+  for (auto& [id, p] : m.points) {
+    p.desc.assign(32, 0);
+    p.p_world.z() += 1.0;
+  }
+  m.erase_keyframe(1);
+  EXPECT_NE(encode_map(m, camera(), orb(), nullptr, kSaved), direct);
+  EXPECT_EQ(encode_map(copy, camera(), orb(), nullptr, kSaved), direct);
+}
+
+// A writer that keeps the job (the test runs it when it chooses).
+class HeldWriter : public MapSaveWriter {
+ public:
+  bool busy() const override { return job != nullptr; }
+  void submit(std::unique_ptr<MapSaveJob> j) override {
+    ++submitted;
+    job = std::move(j);
+  }
+  std::unique_ptr<MapSaveJob> job;
+  int submitted = 0;
+};
+
+// A mapper holding make_map() (as loaded from its file), saving to `name` in a scratch directory
+// through `writer`, with one save requested and the mapper's step that serves it done.
+struct SavingMapper {
+  SavingMapper(const char* name, MapSaveWriter* writer)
+      : m(make_map()),
+        link(std::make_shared<SlamLink>(2)),
+        mapper(MapperParams{}, orb(), camera(), link),
+        dir("mapio"),
+        path((dir.path() / name).string()) {
+    mapper.load(decode_map(encoded(m)));
+    mapper.set_save_target(path, 1);
+    mapper.set_save_writer(writer);
+    link->save_requests.fetch_add(1);
+    mapper.step(0);
+  }
+  const Map m;
+  std::shared_ptr<SlamLink> link;
+  Mapper mapper;
+  ScratchDir dir;
+  const std::string path;
+};
+
+TEST(MapIo, MapperHandsSavesToTheWriterAndCoalescesRequestsWhileItIsBusy) {
+  HeldWriter writer;
+  SavingMapper sm("bg.map", &writer);
+  const Map& m = sm.m;
+  const auto& link = sm.link;
+  Mapper& mapper = sm.mapper;
+  const std::string& path = sm.path;
+  ASSERT_EQ(writer.submitted, 1);
+  EXPECT_FALSE(fs::exists(path));  // the mapper thread only copied the map
+  EXPECT_EQ(writer.job->path, path);
+  EXPECT_EQ(writer.job->link, link);
+  // Three requests while the writer is busy: none is served yet...
+  for (int i = 0; i < 3; ++i) link->save_requests.fetch_add(1);
+  mapper.step(0);
+  mapper.step(0);
+  EXPECT_EQ(writer.submitted, 1);
+  // ...the writer's thread writes the first copy: the file a save on the mapper thread makes.
+  ASSERT_TRUE(run_map_save_job(*writer.job));
+  EXPECT_EQ(link->saves_done.load(), 1u);
+  const std::vector<uint8_t> written = read_map_file(path);
+  const int64_t saved = decode_map_info(written).saved_unix_s;
+  EXPECT_EQ(saved, writer.job->saved_unix_s);
+  EXPECT_EQ(written, encode_map(decode_map(encoded(m)), camera(), orb(), nullptr, saved));
+  // ...and once it is free, one copy serves the three waiting requests.
+  writer.job.reset();
+  mapper.step(0);
+  EXPECT_EQ(writer.submitted, 2);
+  EXPECT_EQ(link->saves_coalesced.load(), 2u);
+  mapper.step(0);
+  EXPECT_EQ(writer.submitted, 2);
+  // A job that cannot be written is counted as failed.
+  writer.job->path = (sm.dir.path() / "no/such/dir.map").string();
+  EXPECT_FALSE(run_map_save_job(*writer.job));
+  EXPECT_EQ(link->saves_failed.load(), 1u);
+}
+
+TEST(MapIo, MapWriterThreadWritesTheMappersCopyAndFinishesItOnStop) {
+  // `rdslam run`'s writer thread (firmware_app/map_writer.h) behind the mapper: a request makes
+  // a copy, the thread writes it, stop() waits for the write.
+  MapWriter writer({}, 19);
+  SavingMapper sm("thread.map", &writer);
+  writer.stop();
+  const auto& link = sm.link;
+  EXPECT_FALSE(writer.busy());
+  EXPECT_EQ(writer.jobs_run(), 1u);
+  EXPECT_EQ(link->saves_done.load(), 1u);
+  const std::vector<uint8_t> written = read_map_file(sm.path);
+  EXPECT_EQ(written, encode_map(decode_map(encoded(sm.m)), camera(), orb(), nullptr,
+                                decode_map_info(written).saved_unix_s));
 }
 
 }  // namespace

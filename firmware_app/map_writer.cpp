@@ -1,0 +1,78 @@
+#include "firmware_app/map_writer.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "core/log.h"
+
+namespace rdslam {
+
+MapWriter::MapWriter(const std::vector<int>& cores, int nice)
+    : thread_(&MapWriter::run, this, cores, nice) {}
+
+MapWriter::~MapWriter() {
+  stop();
+}
+
+void MapWriter::submit(std::unique_ptr<MapSaveJob> job) {
+  busy_.store(true, std::memory_order_release);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    job_ = std::move(job);
+  }
+  cv_.notify_one();
+}
+
+void MapWriter::stop() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_one();
+  if (thread_.joinable()) thread_.join();
+}
+
+void MapWriter::run(std::vector<int> cores, int nice) {
+  pthread_setname_np(pthread_self(), "rdslam-mapsave");
+  if (!cores.empty()) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    for (int c : cores) {
+      if (c >= 0 && c < CPU_SETSIZE) CPU_SET(c, &set);
+    }
+    const int rc = pthread_setaffinity_np(pthread_self(), sizeof(set), &set);
+    if (rc != 0) {
+      RDSLAM_LOG_WARN("map writer: cannot pin to the mapper's cores: %s; running unpinned",
+                      std::strerror(rc));
+    }
+  }
+  // Linux: nice is per thread (setpriority on the thread id). Raising it is always permitted.
+  const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+  if (nice != 0 && setpriority(PRIO_PROCESS, tid, nice) != 0) {
+    RDSLAM_LOG_WARN("map writer: nice %d not permitted: %s", nice, std::strerror(errno));
+  }
+  for (;;) {
+    std::unique_ptr<MapSaveJob> job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return stopping_ || job_ != nullptr; });
+      job = std::move(job_);
+    }
+    if (job) {
+      run_map_save_job(*job);
+      job.reset();  // the copy's memory goes before the mapper may make the next one
+      jobs_run_.fetch_add(1, std::memory_order_relaxed);
+      busy_.store(false, std::memory_order_release);
+      continue;
+    }
+    return;  // stopping, nothing left to write
+  }
+}
+
+}  // namespace rdslam
