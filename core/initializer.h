@@ -6,9 +6,15 @@
 //  1. Motion gate: the median image displacement of the matches must exceed
 //     `min_median_flow_frac`. A camera at rest, or a fixed camera watching people walk (most
 //     matches on the static background), never passes, so noise and moving objects cannot
-//     create a map.
-//  2. Both models are fitted with RANSAC, at most `ransac_max_iterations` samples each: the
-//     essential matrix (five-point, Nister) and a homography. Model selection uses ORB-SLAM's
+//     create a map. Image flow is not parallax, though: a camera that translates while turning
+//     to keep its subject in view (an orbit, a look-at motion) has little flow and a large
+//     triangulation angle. A pair below the gate but above `low_flow_floor_frac` is therefore
+//     still tried, and initializes when its parallax reaches `low_flow_parallax_deg` (step 4);
+//     a pair below the floor is refused without any model fitting (camera at rest: no cost).
+//  2. Both models are fitted robustly, at most `ransac_max_iterations` samples each: the
+//     essential matrix (five-point, Nister; for a low-flow pair OpenCV's USAC_ACCURATE, i.e.
+//     RANSAC whose best model is refit on its inliers, so the motion is stable at small
+//     baselines) and a homography (RANSAC). Model selection uses ORB-SLAM's
 //     score (Mur-Artal et al. 2015, Sec. IV): S_M = sum_i rho(d_i^2 / sigma^2),
 //     rho(x) = Gamma - x for x < T_M else 0, with symmetric transfer errors for H
 //     (T_H = 5.991) and epipolar distances for E (T_E = 3.841), Gamma = 5.991; the homography
@@ -17,7 +23,8 @@
 //  3. All motion hypotheses of the chosen model (4 from E, up to 4 from H) are triangulated;
 //     the best must triangulate clearly more points in front of both cameras than the second.
 //  4. Parallax gate: the `parallax_quantile` quantile of the triangulation angles must exceed
-//     `min_parallax_deg`, and at least `min_inlier_fraction` of all matches must be
+//     `min_parallax_deg` (`low_flow_parallax_deg` when the pair passed the motion gate only
+//     through its floor), and at least `min_inlier_fraction` of all matches must be
 //     consistent with the rigid motion (refuses independently moving points).
 //  5. Two-view bundle adjustment, then the scale is fixed by setting the median scene depth
 //     in the first camera to 1.
@@ -53,6 +60,11 @@ struct InitializerParams {
   // five-point samples find an all-inlier sample with 99.4% probability at 48% inliers (0.8 x
   // min_inlier_fraction), 200 four-point samples at 40% inliers.
   int ransac_max_iterations = 200;
+  // A pair whose median flow is below `min_median_flow_frac` but at least this (fraction of
+  // the image width) is still tried and initializes when the parallax quantile reaches
+  // `low_flow_parallax_deg` (0: the motion gate alone decides, as before).
+  double low_flow_floor_frac = 0.0025;
+  double low_flow_parallax_deg = 2.0;
 
   void visit(ParamVisitor& v);
 };
@@ -70,6 +82,19 @@ struct InitResult {
   double median_parallax_deg = 0.0;
   const Features* reference = nullptr;  // valid until the next add_frame()/reset()
   int64_t reference_stamp_ns = 0;
+};
+
+// The numbers of the last attempt (diagnostics, tests and the per-attempt debug log line).
+struct InitAttempt {
+  int matches = 0;              // matches to the reference
+  double median_flow_px = 0.0;  // median displacement of the matches
+  bool low_flow = false;        // below the motion gate, tried through its floor
+  bool homography = false;      // model chosen
+  double r_h = 0.0;             // S_H / (S_H + S_E)
+  int consistent = 0;           // matches consistent with the best motion hypothesis
+  int second = 0;               // the same for the second-best hypothesis
+  double parallax_deg = 0.0;    // the parallax quantile of the best hypothesis
+  int points = 0;               // points with enough parallax for the map
 };
 
 // Why the last frame did not initialize (diagnostics and tests).
@@ -96,9 +121,11 @@ class Initializer {
   const Features& reference() const { return ref_; }
   int64_t reference_stamp() const { return has_ref_ ? ref_stamp_ : -1; }
   int reference_age() const { return ref_age_; }
+  const InitAttempt& last_attempt() const { return attempt_; }
 
  private:
   int match(const Features& cur);
+  InitStatus evaluate(const Features& cur, InitResult& out);
 
   InitializerParams params_;
   FeatureParams fparams_;
@@ -111,6 +138,7 @@ class Initializer {
   std::vector<int> match_of_ref_;  // ref feature -> cur feature or -1
   std::vector<int> cand_;
   ClaimTable claims_;  // reference feature -> current feature, best distance wins
+  InitAttempt attempt_;
 };
 
 }  // namespace rdslam

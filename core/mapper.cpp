@@ -708,6 +708,17 @@ double Mapper::final_epoch_scale(uint32_t epoch) const {
   return resolve_merges(&epoch, &id, &scale) ? scale : 1.0;
 }
 
+bool Mapper::final_frame_pose(const TrackResult& r, Pose* T_world_cam) const {
+  Pose T_ref_world;
+  if (r.ref_keyframe < 0 || !final_keyframe_pose(r.epoch, r.ref_keyframe, &T_ref_world)) {
+    return false;
+  }
+  // A merged map epoch's relative poses are in its old scale (recovery).
+  *T_world_cam = T_ref_world.inverse() *
+                 Pose{r.q_ref_cam.toRotationMatrix(), r.p_ref_cam * final_epoch_scale(r.epoch)};
+  return true;
+}
+
 std::vector<uint32_t> Mapper::kept_epochs() const {
   std::vector<uint32_t> out;
   for (const auto& k : kept_) out.push_back(k->epoch);

@@ -79,6 +79,7 @@
 #include "core/map_updater.h"
 #include "core/matching.h"
 #include "core/params.h"
+#include "core/stages.h"
 
 namespace rdslam {
 
@@ -147,6 +148,11 @@ class Mapper {
   // map into the one that holds it now (1 when never merged): a frame's pose relative to its
   // reference keyframe (TrackResult::p_ref_cam) is scaled by it before final_keyframe_pose.
   double final_epoch_scale(uint32_t epoch) const;
+  // The final pose (T_world_cam) of a frame the tracker posed with `r`: its pose relative to
+  // its reference keyframe (scaled by final_epoch_scale) on that keyframe's final pose; false
+  // when the keyframe is not in the final map (the online pose is then the best there is).
+  // The one rule both the offline run and the threaded replay write final trajectories by.
+  bool final_frame_pose(const TrackResult& r, Pose* T_world_cam) const;
   // The epochs of the earlier maps kept (oldest first); tests and diagnostics.
   std::vector<uint32_t> kept_epochs() const;
   // Prior maps (issue 24, core/map_io.h). load() replaces the (empty) map by `map`, rebuilds

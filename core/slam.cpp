@@ -50,11 +50,8 @@ class MapperStageImpl : public MapperStage {
   }
   bool step(int timeout_ms) override { return mapper_.step(timeout_ms); }
   void set_keep_trail(bool on) override { mapper_.set_keep_trail(on); }
-  bool final_keyframe_pose(uint32_t epoch, int id, Pose* T_cam_world) const override {
-    return mapper_.final_keyframe_pose(epoch, id, T_cam_world);
-  }
-  double final_epoch_scale(uint32_t epoch) const override {
-    return mapper_.final_epoch_scale(epoch);
+  bool final_frame_pose(const TrackResult& r, Pose* T_world_cam) const override {
+    return mapper_.final_frame_pose(r, T_world_cam);
   }
   bool save_map(const std::string& path, int keep, std::string* message) override {
     MapInfo info;
@@ -158,11 +155,8 @@ OfflineRun run_offline(FrameSource& source, const SlamParams& params, const Came
     sp.stamp_ns = f.stamp_ns;
     sp.p_world_cam = r.p_world_cam;
     sp.q_world_cam = r.q_world_cam;
-    Pose T_ref_world;
-    if (r.ref_keyframe >= 0 && mapper.final_keyframe_pose(r.epoch, r.ref_keyframe, &T_ref_world)) {
-      const Pose T_world_cam =
-          T_ref_world.inverse() *
-          Pose{r.q_ref_cam.toRotationMatrix(), r.p_ref_cam * mapper.final_epoch_scale(r.epoch)};
+    Pose T_world_cam;
+    if (mapper.final_frame_pose(r, &T_world_cam)) {
       sp.q_world_cam = Eigen::Quaterniond(T_world_cam.R).normalized();
       sp.p_world_cam = T_world_cam.t;
     }

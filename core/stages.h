@@ -82,14 +82,12 @@ class MapperStage {
   // Final trajectory (evaluation; core/mapper.h set_keep_trail): call before the first
   // step(). Stages without a map ignore it.
   virtual void set_keep_trail(bool /*on*/) {}
-  // After the last step(): the final pose (T_cam_world) of keyframe `id` of map epoch
-  // `epoch`, or false (another epoch, unknown keyframe, no map).
-  virtual bool final_keyframe_pose(uint32_t /*epoch*/, int /*id*/, Pose* /*T_cam_world*/) const {
+  // After the last step(): the final pose (T_world_cam) of a frame tracked with `r`,
+  // re-anchored on its reference keyframe in the final map (core/mapper.h final_frame_pose),
+  // or false (no map, keyframe not in it). Stages without a map return false.
+  virtual bool final_frame_pose(const TrackResult& /*r*/, Pose* /*T_world_cam*/) const {
     return false;
   }
-  // The scale applied to map epoch `epoch` by the merges that moved it into another map (1:
-  // none); the final trajectory scales a frame's TrackResult::p_ref_cam by it.
-  virtual double final_epoch_scale(uint32_t /*epoch*/) const { return 1.0; }
   // Saves the map to `path` (core/map_io.h; atomic, `keep` - 1 older versions kept) from the
   // calling thread: the mapper thread, or any thread while the mapper thread is not running
   // (after the last step()). False with *message set when there is no map to save or the

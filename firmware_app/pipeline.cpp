@@ -696,13 +696,8 @@ Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_ma
     sp.stamp_ns = f.stamp_ns;
     sp.p_world_cam = f.result.p_world_cam;
     sp.q_world_cam = f.result.q_world_cam;
-    Pose T_ref_world;  // the reference keyframe in the final map
-    if (final_map != nullptr && f.result.ref_keyframe >= 0 &&
-        final_map->final_keyframe_pose(f.result.epoch, f.result.ref_keyframe, &T_ref_world)) {
-      // A merged map epoch's relative poses are in its old scale (recovery).
-      const double scale = final_map->final_epoch_scale(f.result.epoch);
-      const Pose T_world_cam = T_ref_world.inverse() * Pose{f.result.q_ref_cam.toRotationMatrix(),
-                                                            f.result.p_ref_cam * scale};
+    Pose T_world_cam;  // re-anchored on the reference keyframe in the final map
+    if (final_map != nullptr && final_map->final_frame_pose(f.result, &T_world_cam)) {
       sp.q_world_cam = Eigen::Quaterniond(T_world_cam.R).normalized();
       sp.p_world_cam = T_world_cam.t;
     }

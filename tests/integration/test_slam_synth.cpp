@@ -1,6 +1,6 @@
-// Synthetic scenes (drivers/synth_*): issue 7's bars on static scenes (init within 30 frames,
-// >= 99% of later frames tracked, ATE <= 0.3% of the path), no initialization from a fixed
-// camera watching people, relocalization after a one-second blackout, and issue 23's dim
+// Synthetic scenes (drivers/synth_*): issue 7's bars on static scenes (init by frame 10 since
+// issue 22, >= 99% of later frames tracked, ATE <= 0.3% of the path), no initialization from a
+// fixed camera watching people, relocalization after a one-second blackout, and issue 23's dim
 // light (synth:dim and synth:dim_dark: exposure falling to 15% or 8% and back) and its turn
 // on the spot (synth:turn_in_place, _offset: rotation-only tracking, core/tracker.h).
 #include <gtest/gtest.h>
@@ -65,8 +65,10 @@ void expect_bars(const SynthRun& r, int max_first, double min_tracked, double ma
   EXPECT_LE(r.s.ate_rmse_m, max_ate * r.s.path_m);
 }
 
+// Issue 22: the map starts by frame 10 (it waited for the motion gate until frame 13 on
+// static_xyz; ORB-SLAM2 starts at frame 1).
 void expect_static_bars(const SynthRun& r) {
-  expect_bars(r, 30, 0.99, 0.003);
+  expect_bars(r, 10, 0.99, 0.003);
 }
 
 TEST(SlamSynth, StaticXyz) {

@@ -10,21 +10,25 @@
 #
 # A measurement, not a CI test (about 7 minutes on 2 cores).
 #
-# Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-t] OUT_DIR [-- extra args]
+# Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-B DIR] [-t] OUT_DIR [-- extra args]
 #   -t  only print the table (and compare) of the runs already in OUT_DIR
+#   -B  also replay every rendered Blender sequence DIR/NAME (a TUM folder with rgb.txt, made
+#       by tools/blender/render.sh; kept outside the repository) as blender_NAME
 set -euo pipefail
 repo="$(cd "$(dirname "$0")/../.." && pwd)"
 rdslam="$repo/build/firmware_app/rdslam"
 ref=""
 jobs=2
 table_only=0
+blender=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
     -b) rdslam="$2"; shift 2 ;;
     -c) ref="$2"; shift 2 ;;
     -j) jobs="$2"; shift 2 ;;
     -t) table_only=1; shift ;;
-    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+    -B) blender="$2"; shift 2 ;;
+    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
     --) shift; break ;;
     -*) echo "replay_set: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
@@ -49,6 +53,12 @@ if [[ -d "$kitti" ]]; then
 else
   echo "replay_set: $kitti not found: kitti06 skipped" >&2
 fi
+if [[ -n "$blender" ]]; then  # issue 22: the second, independent renderer
+  [[ -d "$blender" ]] || { echo "replay_set: -B $blender: not a directory" >&2; exit 2; }
+  for d in "$blender"/*/; do
+    [[ -f "$d/rgb.txt" ]] && sources+=("blender_$(basename "$d")=tum:${d%/}")
+  done
+fi
 run_one() {  # name=uri
   local name=${1%%=*} uri=${1#*=}
   shift
@@ -62,7 +72,8 @@ status=0
 printf '%-26s %8s %5s %8s %8s %5s %7s %s\n' scene tracked init "ATE %" "final %" kfs points "${ref:+vs $ref}"
 for s in "${sources[@]}"; do
   name=${s%%=*}
-  line=$(python3 - "$out/$name.json" <<'PY'
+  line=""  # a run that failed or was not made prints dashes
+  [[ -f "$out/$name.json" ]] && line=$(python3 - "$out/$name.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 def f(k, fmt):
