@@ -13,8 +13,7 @@
 namespace rdslam {
 
 void MapperParams::visit(ParamVisitor& v) {
-  v.field("m2", m2, 0, 100000,
-          "paper Sec. 4: new points a keyframe must contribute (50-100 there)");
+  v.field("m2", m2, 0, 100000, "paper Sec. 4: new points a keyframe must contribute (50-100)");
   v.field("related_keyframes", related_keyframes, 1, 50,
           "paper Sec. 4: keyframes matched for triangulation");
   v.field("max_keyframes", max_keyframes, 3, 100000, "cap on keyframes (oldest culled)");

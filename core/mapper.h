@@ -84,10 +84,10 @@
 namespace rdslam {
 
 struct MapperParams {
-  int m2 = 20;                // paper Sec. 4 (50-100 there): new points a keyframe must contribute
-  int related_keyframes = 5;  // paper Sec. 4: the 5 most related keyframes
-  int max_keyframes = 150;    // cap
-  int max_points = 20000;     // cap
+  int m2 = 50;                      // paper Sec. 4: new points a keyframe must contribute
+  int related_keyframes = 5;        // paper Sec. 4: the 5 most related keyframes
+  int max_keyframes = 150;          // cap
+  int max_points = 20000;           // cap
   double min_parallax_deg = 1.0;    // new points need this triangulation angle
   double redundant_fraction = 0.9;  // keyframe culling (Sec. 4's 90%)
   int max_epochs = 2;               // recovery: earlier maps kept frozen (0: none)

@@ -130,7 +130,7 @@ struct TrackerParams {
   double keyframe_overlap_ratio = 0.9;  // or tracking fewer than this x reference's points
   int max_keyframe_interval = 20;       // frames; then propose a keyframe anyway
   int young_map_keyframes = 12;         // below this many keyframes the map is young
-  int young_map_keyframe_interval = 3;  // max_keyframe_interval while the map is young
+  int young_map_keyframe_interval = 5;  // max_keyframe_interval while the map is young
   int reset_after_lost_frames = 15;     // with a tiny map: back to INITIALIZING
   // Recovery: LOST this long (seconds of frame stamps since the first LOST frame, whatever the
   // map's size) starts a new map epoch; 0 = never (only the tiny-map rule above).

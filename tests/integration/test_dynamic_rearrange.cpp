@@ -678,10 +678,8 @@ TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   EXPECT_GE(ratio(on.moved_invalidated, on.moved), 0.45);
   // Refined recall 63.0% since the young map proposes keyframes every 5 frames (issue 22,
   // tracker.young_map_keyframes: 27 keyframes accepted instead of fewer, so more points of the
-  // moved surfaces are re-observed before they can be culled); it was above 65% before. With
-  // young-map keyframes every 3 frames and mapper.m2 20 (issue 22 item 1): 60.1%, precision
-  // 85.4%, occluded-only 10.9%. Issue 22 keeps these figures as diagnostics; the trajectory
-  // bars below are the bars.
+  // moved surfaces are re-observed before they can be culled); it was above 65% before. Issue
+  // 22 keeps these figures as diagnostics; the trajectory bars below are the bars.
   EXPECT_GE(ratio(on.moved_removed, on.moved), 0.60);
   EXPECT_GE(ratio(on.invalidated_moved, on.invalidated), 0.49);
   EXPECT_GE(ratio(on.invalidated_moved + on.invalidated_boundary + on.invalidated_covered,
