@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -53,6 +54,9 @@ void InitializerParams::visit(ParamVisitor& v) {
   v.field("ransac_max_iterations", ransac_max_iterations, 10, 100000,
           "RANSAC iterations at most for the essential matrix and the homography (bounds the "
           "cost of an attempt)");
+  v.field("ransac_screen_iterations", ransac_screen_iterations, 0, 100000,
+          "essential-matrix samples of the screening fit: fewer than min_inlier_fraction/2 of "
+          "the matches agree -> attempt refused early (0: off)");
   v.field("low_flow_floor_frac", low_flow_floor_frac, 0.0, 1.0,
           "below the motion gate but above this median flow (fraction of image width), a pair "
           "is still tried and needs low_flow_parallax_deg");
@@ -157,6 +161,18 @@ void check_motion(const PinholeIntrinsics& K, const std::vector<cv::Point2f>& x0
   }
 }
 
+// The samples OpenCV's RANSAC draws once its best model has `inliers` of `n` points in its
+// consensus (RANSACUpdateNumIters, opencv/modules/calib3d/src/ptsetreg.cpp), at most `cap`.
+int ransac_samples_needed(double prob, int inliers, int n, int model_points, int cap) {
+  const double ep = std::clamp(static_cast<double>(n - inliers) / n, 0.0, 1.0);
+  const double num = std::log(std::max(1.0 - prob, std::numeric_limits<double>::min()));
+  const double q = 1.0 - std::pow(1.0 - ep, model_points);
+  if (q < std::numeric_limits<double>::min()) return 0;
+  const double denom = std::log(q);
+  if (denom >= 0 || -num >= cap * (-denom)) return cap;
+  return static_cast<int>(std::lround(num / denom));
+}
+
 Pose from_cv(const cv::Mat& R, const cv::Mat& t) {
   Pose T;
   cv::cv2eigen(R, T.R);
@@ -182,10 +198,11 @@ InitStatus Initializer::add_frame(const Features& cur, int64_t stamp_ns, InitRes
   const InitStatus s = evaluate(cur, out);
   const InitAttempt& a = attempt_;
   RDSLAM_LOG_DEBUG(
-      "initializer: age %d matches %d flow %.1f px%s model %s R_H %.2f consistent %d (2nd %d) "
-      "parallax %.2f deg points %d: %s",
-      ref_age_, a.matches, a.median_flow_px, a.low_flow ? " (low)" : "", a.homography ? "H" : "E",
-      a.r_h, a.consistent, a.second, a.parallax_deg, a.points, to_string(s));
+      "initializer: age %d matches %d flow %.1f px%s E inliers %d model %s R_H %.2f consistent %d "
+      "(2nd %d) parallax %.2f deg points %d: %s",
+      ref_age_, a.matches, a.median_flow_px, a.low_flow ? " (low)" : "", a.e_inliers,
+      a.homography ? "H" : "E", a.r_h, a.consistent, a.second, a.parallax_deg, a.points,
+      to_string(s));
   if (s == InitStatus::kFewMatches) {
     // The view changed too much (or the reference was poor): start again from this frame.
     ref_.copy_from(cur);
@@ -234,11 +251,33 @@ InitStatus Initializer::evaluate(const Features& cur, InitResult& out) {
   // adequate there, and USAC moved kitti06's start from frame 1 (median parallax 0.98 deg
   // against the 1 deg gate) to frame 2.
   const int method = attempt_.low_flow ? cv::USAC_ACCURATE : cv::RANSAC;
-  cv::Mat E =
-      cv::findEssentialMat(x0, x1, Kcv, method, 0.999, 1.0, params_.ransac_max_iterations, maskE);
+  constexpr double kProb = 0.999, kThresholdPx = 1.0;
+  const int screen = params_.ransac_screen_iterations;
+  cv::Mat E;
+  bool fitted = false;
+  if (method == cv::RANSAC && screen > 0 && screen < params_.ransac_max_iterations) {
+    // Screening fit: the first `screen` samples of the full fit (same seed, same order).
+    E = cv::findEssentialMat(x0, x1, Kcv, method, kProb, kThresholdPx, screen, maskE);
+    const bool ok = !E.empty() && E.rows == 3 && E.cols == 3;
+    const int inl = ok ? cv::countNonZero(maskE) : 0;
+    if (inl < 0.5 * params_.min_inlier_fraction * static_cast<double>(nm)) {
+      attempt_.e_inliers = inl;
+      return InitStatus::kInconsistent;
+    }
+    // OpenCV's RANSAC stops after the samples that its best consensus calls for; when that
+    // is below the screen's cap, the full fit would have stopped at the same sample.
+    fitted =
+        ok && ransac_samples_needed(kProb, inl, nm, 5, params_.ransac_max_iterations) < screen - 1;
+    if (!fitted) cv::theRNG().state = 12345;
+  }
+  if (!fitted) {
+    E = cv::findEssentialMat(x0, x1, Kcv, method, kProb, kThresholdPx,
+                             params_.ransac_max_iterations, maskE);
+  }
   cv::Mat H =
       cv::findHomography(x0, x1, cv::RANSAC, 2.0, maskH, params_.ransac_max_iterations, 0.999);
   if (E.empty() || E.rows != 3 || E.cols != 3 || H.empty()) return InitStatus::kModelFailed;
+  attempt_.e_inliers = cv::countNonZero(maskE);
   Eigen::Matrix3d Ee, He;
   cv::cv2eigen(E, Ee);
   cv::cv2eigen(H, He);

@@ -60,6 +60,13 @@ struct InitializerParams {
   // five-point samples find an all-inlier sample with 99.4% probability at 48% inliers (0.8 x
   // min_inlier_fraction), 200 four-point samples at 40% inliers.
   int ransac_max_iterations = 200;
+  // Screening (plain RANSAC pairs, above the motion gate): the essential matrix is first fitted
+  // with this many samples. Fewer than min_inlier_fraction / 2 of the matches in its consensus:
+  // the attempt is refused without more samples and without the homography (kitti06
+  // `--every 3`: 7-23% after the first frame). Otherwise the result is the full fit's: the
+  // screen's own when its RANSAC already stopped adaptively (the same samples in the same
+  // order), else a refit with ransac_max_iterations from the same seed. 0: no screening.
+  int ransac_screen_iterations = 50;
   // A pair whose median flow is below `min_median_flow_frac` but at least this (fraction of
   // the image width) is still tried and initializes when the parallax quantile reaches
   // `low_flow_parallax_deg` (0: the motion gate alone decides, as before).
@@ -91,6 +98,7 @@ struct InitAttempt {
   bool low_flow = false;        // below the motion gate, tried through its floor
   bool homography = false;      // model chosen
   double r_h = 0.0;             // S_H / (S_H + S_E)
+  int e_inliers = 0;            // matches in the essential matrix's RANSAC consensus (1 px)
   int consistent = 0;           // matches consistent with the best motion hypothesis
   int second = 0;               // the same for the second-best hypothesis
   double parallax_deg = 0.0;    // the parallax quantile of the best hypothesis

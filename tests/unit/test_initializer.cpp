@@ -1,7 +1,8 @@
 // core/initializer: two-view initialization on synthetic correspondences. General and planar
 // scenes initialize (essential matrix / homography chosen by the score) with the right
 // motion and unit median depth; a static camera, a purely rotating camera and a fixed camera
-// watching a moving object are refused.
+// watching a moving object are refused. The screening fit bounds the cost of a pair with
+// mostly wrong matches without changing the result on a good pair.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -158,6 +159,55 @@ TEST(Initializer, RefusesFixedCameraWithMovingObject) {
   InitResult r;
   EXPECT_NE(run(observe(s, Pose()), observe(s, Pose(), moving, {0.4, 0.1, 0.0}), r),
             InitStatus::kOk);
+}
+
+// The screening fit (ransac_screen_iterations) changes nothing on a good pair: the same
+// motion to the bit as the full fit. A pair whose matches are mostly wrong (80% displaced by
+// up to 60 px, as kitti06 `--every 3` after its first frame) is refused by the screen, before
+// the full fit; without the screen the full fit refuses it too.
+TEST(Initializer, ScreeningFitKeepsGoodPairsAndRefusesMostlyWrongMatches) {
+  const Scene s = make_scene(400, false, 7);
+  const Features f0 = observe(s, Pose());
+  const Features f1 = observe(s, pose_at({0.4, 0.02, 0.05}, 0.03));
+  FeatureParams fp;
+  InitializerParams screened, full;
+  full.ransac_screen_iterations = 0;
+  ASSERT_GT(screened.ransac_screen_iterations, 0);
+  ASSERT_LT(screened.ransac_screen_iterations, screened.ransac_max_iterations);
+  const auto attempt = [&](const InitializerParams& ip, const Features& cur, InitResult& r,
+                           InitAttempt& a) {
+    Initializer init(ip, fp, kK, BundleAdjustmentParams{});
+    init.add_frame(f0, 0, r);
+    const InitStatus st = init.add_frame(cur, 1, r);
+    a = init.last_attempt();
+    return st;
+  };
+  InitResult rs, rf;
+  InitAttempt as, af;
+  ASSERT_EQ(attempt(screened, f1, rs, as), InitStatus::kOk);
+  ASSERT_EQ(attempt(full, f1, rf, af), InitStatus::kOk);
+  EXPECT_EQ(as.e_inliers, af.e_inliers);
+  EXPECT_EQ(rs.points.size(), rf.points.size());
+  EXPECT_TRUE(rs.T1.R == rf.T1.R);
+  EXPECT_TRUE(rs.T1.t == rf.T1.t);
+
+  Features bad = f1;
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> off(-60.f, 60.f);
+  for (int i = 0; i < bad.count; ++i) {
+    if (i % 5 == 0) continue;  // 20% stay right
+    cv::Point2f& p = bad.kps[i].pt;
+    p.x = std::clamp(p.x + off(rng), 0.f, 639.f);
+    p.y = std::clamp(p.y + off(rng), 0.f, 479.f);
+    bad.un[i] = p;
+  }
+  bad.build_grid();
+  EXPECT_EQ(attempt(screened, bad, rs, as), InitStatus::kInconsistent);
+  EXPECT_GT(as.matches, 300);
+  EXPECT_LT(as.e_inliers, 0.5 * screened.min_inlier_fraction * as.matches);
+  EXPECT_EQ(as.r_h, 0.0);  // refused before the homography was fitted
+  EXPECT_NE(attempt(full, bad, rf, af), InitStatus::kOk);
+  EXPECT_GT(af.e_inliers, 0);
 }
 
 }  // namespace
