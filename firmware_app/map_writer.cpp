@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "core/log.h"
+#include "firmware_app/thread_setup.h"
 
 namespace rdslam {
 
@@ -41,21 +42,15 @@ void MapWriter::stop() {
 void MapWriter::run(std::vector<int> cores, int nice) {
   pthread_setname_np(pthread_self(), "rdslam-mapsave");
   if (!cores.empty()) {
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    for (int c : cores) {
-      if (c >= 0 && c < CPU_SETSIZE) CPU_SET(c, &set);
-    }
-    const int rc = pthread_setaffinity_np(pthread_self(), sizeof(set), &set);
+    const int rc = pin_this_thread(cores);
     if (rc != 0) {
       RDSLAM_LOG_WARN("map writer: cannot pin to the mapper's cores: %s; running unpinned",
                       std::strerror(rc));
     }
   }
-  // Linux: nice is per thread (setpriority on the thread id). Raising it is always permitted.
-  const auto tid = static_cast<id_t>(syscall(SYS_gettid));
-  if (nice != 0 && setpriority(PRIO_PROCESS, tid, nice) != 0) {
-    RDSLAM_LOG_WARN("map writer: nice %d not permitted: %s", nice, std::strerror(errno));
+  if (nice != 0) {
+    const int rc = set_this_thread_nice(nice);
+    if (rc != 0) RDSLAM_LOG_WARN("map writer: nice %d not permitted: %s", nice, std::strerror(rc));
   }
   for (;;) {
     std::unique_ptr<MapSaveJob> job;

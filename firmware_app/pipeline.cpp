@@ -18,6 +18,7 @@
 #include <opencv2/core/utility.hpp>
 
 #include "core/log.h"
+#include "firmware_app/thread_setup.h"
 
 namespace rdslam {
 
@@ -173,18 +174,12 @@ void Pipeline::setup_thread(PipelineThread which) {
     ts.cpu_clock_valid.store(true, std::memory_order_release);
   }
   if (!ts.spec.cores.empty()) {
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    const long ncpu = sysconf(_SC_NPROCESSORS_CONF);
-    for (int c : ts.spec.cores) {
-      if (c < CPU_SETSIZE && c < ncpu) {
-        CPU_SET(c, &set);
-      } else {
-        RDSLAM_LOG_WARN("threads.%s_cores: core %d does not exist (this machine has %ld); ignored",
-                        to_string(which), c, ncpu);
-      }
+    std::vector<int> missing;
+    const int rc = pin_this_thread(ts.spec.cores, &missing);
+    for (int c : missing) {
+      RDSLAM_LOG_WARN("threads.%s_cores: core %d does not exist (this machine has %ld); ignored",
+                      to_string(which), c, sysconf(_SC_NPROCESSORS_CONF));
     }
-    const int rc = CPU_COUNT(&set) > 0 ? pthread_setaffinity_np(self, sizeof(set), &set) : EINVAL;
     ts.affinity_applied = rc == 0;
     if (rc != 0) {
       RDSLAM_LOG_WARN("threads.%s_cores: cannot pin thread to cores [%s]: %s; running unpinned",
@@ -212,11 +207,9 @@ void Pipeline::setup_thread(PipelineThread which) {
     }
   }
   if (ts.spec.nice != 0 && !ts.fifo_applied) {
-    // Linux: nice is per thread (setpriority on the thread id). A mapper at nice > 0 leaves
-    // the tracker the CPU it needs when both share a core (2-core boards).
-    errno = 0;
-    const int rc =
-        setpriority(PRIO_PROCESS, static_cast<id_t>(ts.tid), ts.spec.nice) == 0 ? 0 : errno;
+    // A mapper at nice > 0 leaves the tracker the CPU it needs when both share a core (2-core
+    // boards).
+    const int rc = set_this_thread_nice(ts.spec.nice);
     ts.nice_applied = rc == 0;
     if (rc != 0) {
       RDSLAM_LOG_WARN(

@@ -16,6 +16,7 @@
 #include "core/log.h"
 #include "firmware_app/debug_video.h"
 #include "firmware_app/pipeline.h"
+#include "firmware_app/thread_setup.h"
 #include "rdslam/map_t.hpp"
 
 namespace rdslam {
@@ -110,7 +111,7 @@ ViewerPublisherStats ViewerPublisher::stats() const {
 void ViewerPublisher::worker() {
   // A background thread: below the pipeline's threads under normal scheduling (SCHED_FIFO
   // pipeline threads preempt it anyway).
-  setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+  set_this_thread_nice(10);
   for (;;) {
     const uint32_t ticket = filled_bell_.ticket();
     uint8_t idx = 0;
