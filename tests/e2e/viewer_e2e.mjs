@@ -9,6 +9,7 @@
 import { spawn, spawnSync } from "node:child_process";
 import { mkdirSync, mkdtempSync, rmSync } from "node:fs";
 import { tmpdir } from "node:os";
+import { randomInt } from "node:crypto";
 import { join } from "node:path";
 import { chromium } from "playwright-core";
 
@@ -18,8 +19,9 @@ if (!bin || !outDir || !chromiumPath) {
   process.exit(2);
 }
 mkdirSync(outDir, { recursive: true });
-// A port of its own so that parallel tests on this host do not hear each other (ttl=0).
-const lcmPort = 7800 + (process.pid % 150);
+// A port of its own, drawn at random, so that other tests and other test runs on this host
+// (ttl=0 multicast is host-wide, across PID namespaces) do not hear each other.
+const lcmPort = 20000 + randomInt(20000);
 const lcmUrl = `udpm://239.255.76.67:${lcmPort}?ttl=0`;
 const children = [];
 let failed = false;

@@ -31,6 +31,7 @@
 #include "core/trajectory_eval.h"
 #include "drivers/source_factory.h"
 #include "rdslam/command_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 
 namespace rdslam {
 namespace {
@@ -188,7 +189,9 @@ int count(const std::string& text, const std::string& what) {
 TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
   ScratchDir dir("map-run");
   const std::string map = (dir.path() / "run.map").string();
-  const std::string url = "udpm://239.255.76.67:7736?ttl=0";
+  // A bus and command channel of this process only (tests/support/lcm_test_bus.h).
+  const std::string url = rdslam::testing::private_lcm_url();
+  const std::string command_channel = rdslam::testing::private_channel("RDSLAM_COMMAND");
   // While the daemon replays 4 s of video in real time, once it listens: localize, save_map,
   // an unknown code and a malformed message, as another process would send them; a reset once
   // the tracker has initialized.
@@ -201,9 +204,9 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
       c.command = code;
       std::vector<uint8_t> buf(static_cast<size_t>(c.getEncodedSize()));
       c.encode(buf.data(), 0, static_cast<int>(buf.size()));
-      lcm_publish(lcm, "RDSLAM_COMMAND", buf.data(), static_cast<unsigned>(buf.size()));
+      lcm_publish(lcm, command_channel.c_str(), buf.data(), static_cast<unsigned>(buf.size()));
     }
-    lcm_publish(lcm, "RDSLAM_COMMAND", "junk", 4);
+    lcm_publish(lcm, command_channel.c_str(), "junk", 4);
     lcm_destroy(lcm);
   };
   // Once the tracker has a map: reset (a reset while INITIALIZING has nothing to discard).
@@ -215,12 +218,13 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
     c.command = command_t::RESET;
     std::vector<uint8_t> buf(static_cast<size_t>(c.getEncodedSize()));
     c.encode(buf.data(), 0, static_cast<int>(buf.size()));
-    lcm_publish(lcm, "RDSLAM_COMMAND", buf.data(), static_cast<unsigned>(buf.size()));
+    lcm_publish(lcm, command_channel.c_str(), buf.data(), static_cast<unsigned>(buf.size()));
     lcm_destroy(lcm);
   };
   const std::string cmd =
       bin() + " run --set " + shell_quote(std::string("source=") + kMapScene + "?frames=120") +
       " --set pipeline.replay_speed=1 --set lcm.url=" + shell_quote(url) +
+      " --set lcm.command_channel=" + shell_quote(command_channel) +
       " --set map.save_period_s=1.5 --set map.keep=3 --save-map " + shell_quote(map) + " 2>&1";
   testing::CommandResult r;
   FILE* p = popen(cmd.c_str(), "r");
@@ -229,7 +233,8 @@ TEST(MapRun, SavesPeriodicallyOnCommandAndAtShutdownAndObeysCommands) {
   bool sent = false, initialized = false, reset_sent = false;
   while (std::fgets(line, sizeof(line), p)) {
     r.output += line;
-    if (!sent && std::strstr(line, "run: commands (rdslam.command_t) on RDSLAM_COMMAND")) {
+    if (!sent &&
+        std::strstr(line, ("run: commands (rdslam.command_t) on " + command_channel).c_str())) {
       send_commands();
       sent = true;
     }

@@ -29,6 +29,7 @@
 #include "core/trajectory.h"
 #include "rdslam/pose_t.hpp"
 #include "rdslam/status_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 
 extern char** environ;
 
@@ -149,12 +150,14 @@ TEST(RunLcm, LcmLoggerRecordsOnePosePerProcessedFrameEqualToGroundTruth) {
   const std::string logger = find_program("lcm-logger");
   ASSERT_FALSE(logger.empty()) << "lcm-logger not found: install liblcm-bin "
                                   "(toolchain/install-deps.sh)";
-  const std::string url = "udpm://239.255.76.67:7741?ttl=0";
+  // A bus and channel prefix of this process only (tests/support/lcm_test_bus.h).
+  const std::string url = rdslam::testing::private_lcm_url(1);
+  const std::string t1 = rdslam::testing::private_channel("T1");
   const std::string dir = temp_dir("runlcm");
   const std::string log_path = dir + "/poses.lcmlog";
 
   Child log =
-      spawn({logger, "-f", "-c", "T1_.*", "--flush-interval=50", "--lcm-url=" + url, log_path},
+      spawn({logger, "-f", "-c", t1 + "_.*", "--flush-interval=50", "--lcm-url=" + url, log_path},
             dir + "/logger.out", dir + "/logger.err");
   ASSERT_GT(log.pid, 0);
   // Readiness: publish probes until the logger has written one to its file.
@@ -165,14 +168,15 @@ TEST(RunLcm, LcmLoggerRecordsOnePosePerProcessedFrameEqualToGroundTruth) {
     struct stat st {};
     bool ready = false;
     for (int i = 0; i < 300 && !ready; ++i) {
-      probe.publish("T1_PROBE", &byte, 1);
+      probe.publish(t1 + "_PROBE", &byte, 1);
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
       ready = ::stat(log_path.c_str(), &st) == 0 && st.st_size > 0;
     }
     ASSERT_TRUE(ready) << "lcm-logger did not start recording: " << slurp(dir + "/logger.err");
   }
 
-  Child run = spawn(run_args("kitti:" + kitti, url, "T1_POSE", "T1_STATUS"), "", dir + "/run.err");
+  Child run =
+      spawn(run_args("kitti:" + kitti, url, t1 + "_POSE", t1 + "_STATUS"), "", dir + "/run.err");
   ASSERT_GT(run.pid, 0);
   int status = 0;
   ASSERT_TRUE(run.wait_exit(60000, &status)) << "rdslam run did not finish";
@@ -193,12 +197,12 @@ TEST(RunLcm, LcmLoggerRecordsOnePosePerProcessedFrameEqualToGroundTruth) {
   rdslam::status_t last_status;
   int status_msgs = 0;
   for (const lcm::LogEvent* ev = lf.readNextEvent(); ev; ev = lf.readNextEvent()) {
-    if (ev->channel == "T1_POSE") {
+    if (ev->channel == t1 + "_POSE") {
       rdslam::pose_t m;
       ASSERT_GT(m.decode(ev->data, 0, ev->datalen), 0);
       poses[m.seq] = m;
       ++pose_msgs;
-    } else if (ev->channel == "T1_STATUS") {
+    } else if (ev->channel == t1 + "_STATUS") {
       ASSERT_GT(last_status.decode(ev->data, 0, ev->datalen), 0);
       ++status_msgs;
     }
@@ -233,13 +237,14 @@ TEST(RunLcm, SeparatePythonProcessSubscribesWhileThePipelineRuns) {
     GTEST_SKIP() << "shared data absent: " << euroc << " (needs ../shared/data)";
   }
   ASSERT_TRUE(exists(kPython)) << "Python venv missing: run toolchain/install-deps.sh";
-  const std::string url = "udpm://239.255.76.67:7742?ttl=0";
+  const std::string url = rdslam::testing::private_lcm_url(2);
+  const std::string t2 = rdslam::testing::private_channel("T2");
   const std::string dir = temp_dir("runpy");
   const std::string script = R"PY(import os, sys, time
 sys.path.insert(0, sys.argv[1])
 import lcm
 from rdslam import pose_t, status_t
-url, ready_path = sys.argv[2], sys.argv[3]
+url, prefix, ready_path = sys.argv[2], sys.argv[3], sys.argv[4]
 lc = lcm.LCM(url)
 got = {"poses": 0, "tracking": 0, "seqs": [], "processed": -1, "running_reports": 0}
 def on_pose(ch, data):
@@ -252,8 +257,8 @@ def on_status(ch, data):
     m = status_t.decode(data)
     got["processed"] = m.frames_processed
     got["running_reports"] += 1
-lc.subscribe("T2_POSE", on_pose)
-lc.subscribe("T2_STATUS", on_status)
+lc.subscribe(prefix + "_POSE", on_pose)
+lc.subscribe(prefix + "_STATUS", on_status)
 open(ready_path, "w").close()
 deadline = time.time() + 60
 last = time.time()
@@ -265,10 +270,11 @@ while time.time() < deadline:
 inorder = all(b > a for a, b in zip(got["seqs"], got["seqs"][1:]))
 print(got["poses"], got["tracking"], got["processed"], int(inorder), got["running_reports"])
 )PY";
-  Child sub = start_python(dir, "sub", script, {RDSLAM_LCM_PY_DIR, url}, true);
+  Child sub = start_python(dir, "sub", script, {RDSLAM_LCM_PY_DIR, url, t2}, true);
   ASSERT_GT(sub.pid, 0) << "subscriber did not start: " << slurp(dir + "/sub.err");
 
-  Child run = spawn(run_args("euroc:" + euroc, url, "T2_POSE", "T2_STATUS"), "", dir + "/run.err");
+  Child run =
+      spawn(run_args("euroc:" + euroc, url, t2 + "_POSE", t2 + "_STATUS"), "", dir + "/run.err");
   int status = 0;
   ASSERT_TRUE(run.wait_exit(60000, &status));
   ASSERT_TRUE(WIFEXITED(status));
@@ -296,16 +302,17 @@ print(got["poses"], got["tracking"], got["processed"], int(inorder), got["runnin
 // carries a covariance (finite, symmetric, positive definite), every other pose all -1.
 TEST(RunLcm, PythonSubscriberSeesTheMapEpochChangeAndThePoseCovariance) {
   ASSERT_TRUE(exists(kPython)) << "Python venv missing: run toolchain/install-deps.sh";
-  const std::string url = "udpm://239.255.76.67:7744?ttl=0";
+  const std::string url = rdslam::testing::private_lcm_url(4);
+  const std::string t4 = rdslam::testing::private_channel("T4");
   const std::string dir = temp_dir("runepoch");
   const std::string script = R"PY(import math, sys, time
 sys.path[:0] = [sys.argv[1], sys.argv[2]]
 import lcm, numpy as np
 import rdslam_msgs
-url, ready_path = sys.argv[3], sys.argv[4]
+url, prefix, ready_path = sys.argv[3], sys.argv[4], sys.argv[5]
 lc = lcm.LCM(url)
 msgs = []
-lc.subscribe("T4_POSE", lambda ch, data: msgs.append(rdslam_msgs.decode_pose(data)))
+lc.subscribe(prefix + "_POSE", lambda ch, data: msgs.append(rdslam_msgs.decode_pose(data)))
 open(ready_path, "w").close()
 deadline, last = time.time() + 120, time.time()
 while time.time() < deadline:
@@ -338,14 +345,14 @@ print(len(msgs), ",".join(str(e) for e in epochs), tracked[0], tracked[1], cov_o
       untracked, untracked_bad, decreases, min(m.version for m in msgs),
       np.median(sig_c) if sig_c else -1, np.median(sig_r) if sig_r else -1)
 )PY";
-  Child sub =
-      start_python(dir, "sub", script,
-                   {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", url}, true);
+  Child sub = start_python(
+      dir, "sub", script,
+      {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", url, t4}, true);
   ASSERT_GT(sub.pid, 0) << "subscriber did not start: " << slurp(dir + "/sub.err");
 
   std::vector<std::string> args =
       run_args("synth:" + std::string(RDSLAM_SOURCE_DIR) + "/tests/data/lcm/map_reset.yaml", url,
-               "T4_POSE", "T4_STATUS");
+               t4 + "_POSE", t4 + "_STATUS");
   // The SLAM stages, lossless; no keyframes after the initial two, so that losing the map
   // resets it (tracker.reset_after_lost_frames applies to maps of <= 2 keyframes).
   for (const char* kv : {"pipeline.stages=slam", "pipeline.replay_speed=0",
@@ -430,9 +437,9 @@ m2 = pose_t()
 m2.version, m2.map_epoch, m2.seq = pose_t.VERSION, 5, 9
 lc = lcm.LCM(sys.argv[4])
 got = []
-lc.subscribe("T5_POSE", lambda ch, data: got.append(data))
+lc.subscribe(sys.argv[5], lambda ch, data: got.append(data))
 for m in (old(), m3, m2):
-    lc.publish("T5_POSE", m.encode())
+    lc.publish(sys.argv[5], m.encode())
 while len(got) < 3 and lc.handle_timeout(2000) > 0:
     pass
 print("received", len(got))
@@ -448,10 +455,11 @@ for data in got:
     except ValueError as e:
         print("old subscriber ValueError: %s" % e)
 )PY";
-  Child py = start_python(dir, "versions", script,
-                          {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", dir,
-                           "udpm://239.255.76.67:7745?ttl=0"},
-                          false);
+  Child py = start_python(
+      dir, "versions", script,
+      {RDSLAM_LCM_PY_DIR, std::string(RDSLAM_SOURCE_DIR) + "/tools/lcm", dir,
+       rdslam::testing::private_lcm_url(5), rdslam::testing::private_channel("T5_POSE")},
+      false);
   int st = 0;
   ASSERT_TRUE(py.wait_exit(30000, &st));
   ASSERT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0) << slurp(dir + "/versions.err");
@@ -492,9 +500,10 @@ TEST(RunLcm, SigtermStopsTheDaemonCleanlyWithinTwoSeconds) {
   const std::string video = kShared + "/data/opencv_vtest/vtest.avi";
   if (!exists(video)) GTEST_SKIP() << "shared data absent: " << video;
   const std::string dir = temp_dir("runterm");
-  Child run =
-      spawn(run_args("video:" + video, "udpm://239.255.76.67:7743?ttl=0", "T3_POSE", "T3_STATUS"),
-            "", dir + "/run.err");
+  Child run = spawn(run_args("video:" + video, rdslam::testing::private_lcm_url(3),
+                             rdslam::testing::private_channel("T3_POSE"),
+                             rdslam::testing::private_channel("T3_STATUS")),
+                    "", dir + "/run.err");
   ASSERT_GT(run.pid, 0);
   // Running: the first periodic stats line has been logged.
   bool running = false;

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "bot_core/image_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 #include "tests/support/notify_socket.h"
 
 using rdslam::testing::NotifyMessage;
@@ -40,8 +41,8 @@ class Daemon {
   explicit Daemon(const std::string& notify_socket) {
     const int id = static_cast<int>(getpid());
     // A port and channels of our own: parallel tests never see each other's traffic.
-    url_ = "udpm://239.255.76.67:" + std::to_string(20000 + id % 20000) + "?ttl=0";
-    channel_ = "RDSLAM_NOTIFYTEST_CAM_" + std::to_string(id);
+    url_ = rdslam::testing::private_lcm_url();
+    channel_ = rdslam::testing::private_channel("RDSLAM_NOTIFYTEST_CAM");
     log_path_ = "/tmp/rdslam-notifytest-" + std::to_string(id) + ".log";
     const std::string suffix = "_NOTIFYTEST_" + std::to_string(id);
     std::vector<std::string> args = {

@@ -55,7 +55,7 @@ for mode in $modes; do
     run)
       rm -f "$build/tsan_run.map"*
       cmd=("$build/firmware_app/rdslam" run --set "source=synth:rearrange?frames=$frames"
-        --set pipeline.replay_speed=0 --set 'lcm.url=udpm://239.255.76.67:7739?ttl=0'
+        --set pipeline.replay_speed=0 --set "lcm.url=udpm://239.255.76.67:$((20000 + RANDOM % 20000))?ttl=0"
         --set lcm.command_channel= --set map.save_period_s=0.2 --save-map "$build/tsan_run.map")
       level=info  # the save counts are logged
       ;;

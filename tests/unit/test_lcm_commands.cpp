@@ -6,19 +6,24 @@
 
 #include <chrono>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "firmware_app/lcm_commands.h"
 #include "rdslam/command_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 
 namespace rdslam {
 namespace {
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7734?ttl=0";
+// A bus and channel names of this process only (tests/support/lcm_test_bus.h).
+const std::string kUrl = testing::private_lcm_url();
+const std::string kChannelA = testing::private_channel(kChannelA);
+const std::string kChannelB = testing::private_channel(kChannelB);
 
 class Sender {
  public:
-  explicit Sender(const char* channel) : lcm_(lcm_create(kUrl)), channel_(channel) {}
+  explicit Sender(const std::string& channel) : lcm_(lcm_create(kUrl.c_str())), channel_(channel) {}
   ~Sender() { lcm_destroy(lcm_); }
   bool ok() const { return lcm_ != nullptr; }
   void send(int8_t code) {
@@ -30,12 +35,12 @@ class Sender {
     raw(buf.data(), buf.size());
   }
   void raw(const void* data, size_t n) {
-    lcm_publish(lcm_, channel_, data, static_cast<unsigned>(n));
+    lcm_publish(lcm_, channel_.c_str(), data, static_cast<unsigned>(n));
   }
 
  private:
   lcm_t* lcm_;
-  const char* channel_;
+  std::string channel_;
 };
 
 // Polls until `done` or 2 s.
@@ -49,8 +54,8 @@ bool poll_until(LcmCommands& c, Done&& done) {
 TEST(LcmCommands, EachCodeChangesItsLinkField) {
   auto link = std::make_shared<SlamLink>(2);
   // Each test its own channel (ctest may run them at the same time).
-  LcmCommands cmds(kUrl, "T_COMMAND_A", link, /*can_save=*/true);
-  Sender s("T_COMMAND_A");
+  LcmCommands cmds(kUrl, kChannelA, link, /*can_save=*/true);
+  Sender s(kChannelA);
   ASSERT_TRUE(s.ok());
   s.send(command_t::LOCALIZE);
   ASSERT_TRUE(poll_until(cmds, [&] { return cmds.accepted() == 1; }));
@@ -72,8 +77,8 @@ TEST(LcmCommands, EachCodeChangesItsLinkField) {
 
 TEST(LcmCommands, UnknownMalformedAndUnservableCommandsAreRejectedAndCounted) {
   auto link = std::make_shared<SlamLink>(2);
-  LcmCommands cmds(kUrl, "T_COMMAND_B", link, /*can_save=*/false);
-  Sender s("T_COMMAND_B");
+  LcmCommands cmds(kUrl, kChannelB, link, /*can_save=*/false);
+  Sender s(kChannelB);
   ASSERT_TRUE(s.ok());
   s.send(9);                    // unknown code
   s.send(command_t::SAVE_MAP);  // no map file configured

@@ -16,6 +16,7 @@
 #include "drivers/lcm_image_source.h"
 #include "drivers/source_factory.h"
 #include "tests/support/dataset_fixtures.h"
+#include "tests/support/lcm_test_bus.h"
 
 using namespace rdslam;
 using rdslam::testing::random_image;
@@ -25,8 +26,7 @@ using rdslam::testing::TempDir;
 namespace {
 
 std::string test_url(int salt) {
-  const int port = 20000 + (static_cast<int>(getpid()) * 7 + salt) % 20000;
-  return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0";
+  return rdslam::testing::private_lcm_url(salt);
 }
 
 bot_core::image_t make_msg(int64_t utime, const cv::Mat& img, int32_t format, int pad = 0) {

@@ -26,6 +26,7 @@
 #include "firmware_app/lcm_publisher.h"
 #include "firmware_app/passthrough_stages.h"
 #include "firmware_app/pipeline.h"
+#include "tests/support/lcm_test_bus.h"
 #include "tests/unit/alloc_counting.h"
 #include "tests/unit/pipeline_fakes.h"
 
@@ -108,7 +109,7 @@ TEST(PipelineAlloc, ZeroAllocationsOverOneThousandSteadyStateFrames) {
   }
   PassthroughStages stages(std::move(gt));
   LcmParams lp;
-  lp.url = "udpm://239.255.76.67:7731?ttl=0";
+  lp.url = testing::private_lcm_url();
   lp.pose_channel = "RDSLAM_POSE_ALLOC_TEST";
   lp.status_channel = "RDSLAM_STATUS_ALLOC_TEST";
   lp.publish_bot_core_pose = true;

@@ -1,6 +1,6 @@
 // LcmPublisher (firmware_app/lcm_publisher.h): what goes on the wire decodes with the
 // generated C++ types and carries the pipeline's values. In-process subscriber, ttl=0 URL
-// on a port of its own.
+// on a bus and channels of its own (tests/support/lcm_test_bus.h).
 #include <gtest/gtest.h>
 #include <lcm/lcm.h>
 
@@ -10,11 +10,15 @@
 #include "firmware_app/lcm_publisher.h"
 #include "rdslam/pose_t.hpp"
 #include "rdslam/status_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 
 namespace rdslam {
 namespace {
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7733?ttl=0";
+const std::string kUrl = testing::private_lcm_url();
+const std::string kPose = testing::private_channel("T_POSE");
+const std::string kStatus = testing::private_channel("T_STATUS");
+const std::string kBot = testing::private_channel("T_BOT");
 
 struct Received {
   int poses = 0, statuses = 0, bot = 0;
@@ -26,27 +30,27 @@ struct Received {
 void on_msg(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   auto* r = static_cast<Received*>(user);
   const std::string ch = channel;
-  if (ch == "T_POSE") {
+  if (ch == kPose) {
     if (r->pose.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->poses;
-  } else if (ch == "T_STATUS") {
+  } else if (ch == kStatus) {
     if (r->status.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->statuses;
-  } else if (ch == "T_BOT") {
+  } else if (ch == kBot) {
     if (r->bot_pose.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->bot;
   }
 }
 
 TEST(LcmPublisher, PoseStatusAndBotCorePoseDecodeWithTheGeneratedTypes) {
-  lcm_t* sub = lcm_create(kUrl);
+  lcm_t* sub = lcm_create(kUrl.c_str());
   ASSERT_NE(sub, nullptr);
   Received got;
   lcm_subscribe(sub, "T_.*", on_msg, &got);
 
   LcmParams p;
   p.url = kUrl;
-  p.pose_channel = "T_POSE";
-  p.status_channel = "T_STATUS";
+  p.pose_channel = kPose;
+  p.status_channel = kStatus;
   p.publish_bot_core_pose = true;
-  p.bot_core_pose_channel = "T_BOT";
+  p.bot_core_pose_channel = kBot;
   LcmPublisher pub(p);
 
   FrameResult fr;

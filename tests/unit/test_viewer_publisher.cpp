@@ -2,7 +2,7 @@
 // only when due and free, and its thread publishes a downscaled JPEG bot_core.image_t and an
 // rdslam.map_t whose point sample respects viewer.map_max_points (at most a quarter of it
 // invalidated points) and carries the keyframe poses. In-process subscriber, ttl=0 URL on a
-// port of its own.
+// bus and channel names of its own (tests/support/lcm_test_bus.h).
 #include <gtest/gtest.h>
 #include <lcm/lcm.h>
 
@@ -14,11 +14,15 @@
 #include "bot_core/image_t.hpp"
 #include "firmware_app/viewer_publisher.h"
 #include "rdslam/map_t.hpp"
+#include "tests/support/lcm_test_bus.h"
 
 namespace rdslam {
 namespace {
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7751?ttl=0";
+// A bus and channel names of this process only (tests/support/lcm_test_bus.h).
+const std::string kUrl = testing::private_lcm_url();
+const std::string kImageChannel = testing::private_channel("T_IMAGE");
+const std::string kMapChannel = testing::private_channel("T_MAP");
 
 struct Received {
   int images = 0, maps = 0;
@@ -29,8 +33,8 @@ struct Received {
 void on_msg(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   auto* r = static_cast<Received*>(user);
   const std::string ch = channel;
-  if (ch == "T_IMAGE" && r->image.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->images;
-  if (ch == "T_MAP" && r->map.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->maps;
+  if (ch == kImageChannel && r->image.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->images;
+  if (ch == kMapChannel && r->map.decode(rbuf->data, 0, rbuf->data_size) > 0) ++r->maps;
 }
 
 CameraModel camera_1280x720() {
@@ -75,15 +79,15 @@ void fill(DebugFrame& d, uint64_t seq, const std::shared_ptr<const MapSnapshot>&
 }
 
 TEST(ViewerPublisher, LendsRecordsWhenDueAndPublishesAScaledJpegAndACappedMap) {
-  lcm_t* sub = lcm_create(kUrl);
+  lcm_t* sub = lcm_create(kUrl.c_str());
   ASSERT_NE(sub, nullptr);
   Received got;
   lcm_subscribe(sub, "T_.*", on_msg, &got);
 
   LcmParams lp;
   lp.url = kUrl;
-  lp.image_channel = "T_IMAGE";
-  lp.map_channel = "T_MAP";
+  lp.image_channel = kImageChannel;
+  lp.map_channel = kMapChannel;
   ViewerParams vp;
   vp.image_hz = 5;  // a record every 200 ms
   vp.map_hz = 5;
@@ -143,8 +147,8 @@ TEST(ViewerPublisher, LendsRecordsWhenDueAndPublishesAScaledJpegAndACappedMap) {
 TEST(ViewerPublisher, SkipsAndCountsWhenNoRecordIsFree) {
   LcmParams lp;
   lp.url = kUrl;
-  lp.image_channel = "T_IMAGE";
-  lp.map_channel = "T_MAP";
+  lp.image_channel = kImageChannel;
+  lp.map_channel = kMapChannel;
   ViewerParams vp;
   vp.image_hz = 30;
   vp.map_hz = 0;
