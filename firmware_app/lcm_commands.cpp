@@ -2,6 +2,7 @@
 
 #include <lcm/lcm.h>
 
+#include <cstdint>
 #include <stdexcept>
 
 #include "core/log.h"
@@ -35,45 +36,59 @@ void LcmCommands::on_message(const lcm_recv_buf_t* rbuf, const char* /*channel*/
   static_cast<LcmCommands*>(self)->handle(rbuf->data, rbuf->data_size);
 }
 
-void LcmCommands::handle(const void* data, uint32_t size) {
+CommandVerdict apply_command_message(const void* data, uint32_t size, SlamLink& link, bool can_save,
+                                     int8_t* code) {
+  *code = 0;
   command_t c;
-  if (c.decode(data, 0, static_cast<int>(size)) < 0 ||
+  if (size > static_cast<uint32_t>(INT32_MAX) || c.decode(data, 0, static_cast<int>(size)) < 0 ||
       c.getEncodedSize() != static_cast<int>(size)) {
-    if (malformed_.fetch_add(1) < 5) {
-      RDSLAM_LOG_WARN("command: malformed message (%u bytes, not rdslam.command_t): rejected",
-                      size);
-    }
-    return;
+    return CommandVerdict::kMalformed;
   }
+  *code = c.command;
   switch (c.command) {
     case command_t::RESET:
-      link_->localize_only.store(false);
-      link_->reset_requests.fetch_add(1);
-      break;
+      link.localize_only.store(false);
+      link.reset_requests.fetch_add(1);
+      return CommandVerdict::kAccepted;
     case command_t::SAVE_MAP:
-      if (!can_save_) {
-        if (rejected_.fetch_add(1) < 5) {
-          RDSLAM_LOG_WARN("command: save_map rejected: no map file configured (map.save_path)");
-        }
-        return;
-      }
-      link_->save_requests.fetch_add(1);
-      break;
+      if (!can_save) return CommandVerdict::kRejected;
+      link.save_requests.fetch_add(1);
+      return CommandVerdict::kAccepted;
     case command_t::LOCALIZE:
-      link_->localize_only.store(true);
-      break;
+      link.localize_only.store(true);
+      return CommandVerdict::kAccepted;
     case command_t::MAPPING:
-      link_->localize_only.store(false);
-      break;
+      link.localize_only.store(false);
+      return CommandVerdict::kAccepted;
     default:
-      if (rejected_.fetch_add(1) < 5) {
-        RDSLAM_LOG_WARN("command: unknown command code %d: rejected", int(c.command));
+      return CommandVerdict::kRejected;
+  }
+}
+
+void LcmCommands::handle(const void* data, uint32_t size) {
+  int8_t code = 0;
+  switch (apply_command_message(data, size, *link_, can_save_, &code)) {
+    case CommandVerdict::kMalformed:
+      if (malformed_.fetch_add(1) < 5) {
+        RDSLAM_LOG_WARN("command: malformed message (%u bytes, not rdslam.command_t): rejected",
+                        size);
       }
       return;
+    case CommandVerdict::kRejected:
+      if (rejected_.fetch_add(1) < 5) {
+        if (code == command_t::SAVE_MAP) {
+          RDSLAM_LOG_WARN("command: save_map rejected: no map file configured (map.save_path)");
+        } else {
+          RDSLAM_LOG_WARN("command: unknown command code %d: rejected", int(code));
+        }
+      }
+      return;
+    case CommandVerdict::kAccepted:
+      break;
   }
   accepted_.fetch_add(1);
   static const char* const kNames[] = {"", "reset", "save_map", "localize", "mapping"};
-  RDSLAM_LOG_INFO("command: %s", kNames[c.command]);
+  RDSLAM_LOG_INFO("command: %s", kNames[code]);
 }
 
 }  // namespace rdslam

@@ -32,6 +32,16 @@ typedef struct _lcm_recv_buf_t lcm_recv_buf_t;
 
 namespace rdslam {
 
+// What one received message did (apply_command_message).
+enum class CommandVerdict { kAccepted, kRejected, kMalformed };
+
+// Decodes one message as rdslam.command_t and applies it to `link` (the table above). Pure
+// apart from `link`'s atomics: no LCM, no logging, no allocation beyond the decoder's, so
+// that the fuzz target (tests/fuzz/fuzz_lcm.cpp) runs it on any bytes. `code` receives the
+// decoded command code (0 when malformed). Any thread.
+CommandVerdict apply_command_message(const void* data, uint32_t size, SlamLink& link, bool can_save,
+                                     int8_t* code);
+
 class LcmCommands {
  public:
   // Throws std::runtime_error when the URL cannot be opened. `can_save`: a map file is

@@ -40,9 +40,9 @@ for lib in core/librdslam_core.a drivers/librdslam_drivers.a firmware_app/librds
   [[ -f "$build/$lib" ]] || { echo "fuzz: $build/$lib missing: build rdslam first" >&2; exit 1; }
 done
 mkdir -p "$out/lcmtypes" "$out/bin"
-# bot_core.image_t's generated C++ header (as the main build makes it).
+# The received types' generated C++ headers (as the main build makes them).
 lcm-gen -x --cpp-hpath "$out/lcmtypes" lcmtypes/bot_core_image_t.lcm \
-  lcmtypes/bot_core_image_metadata_t.lcm >/dev/null
+  lcmtypes/bot_core_image_metadata_t.lcm lcmtypes/rdslam_command_t.lcm >/dev/null
 
 cxx=(clang++ -std=c++17 -O1 -g1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
   -fno-omit-frame-pointer -Wall -Wextra -Werror -I. -I"$out/lcmtypes" -isystem /usr/include/opencv4
@@ -62,7 +62,7 @@ declare -A sources=(
   [fuzz_dataset_index]="drivers/dataset_tum.cpp drivers/dataset_euroc.cpp drivers/dataset_kitti.cpp drivers/replay_source.cpp core/camera.cpp core/timestamp.cpp"
   [fuzz_trajectory]="core/trajectory.cpp core/trajectory_eval.cpp core/timestamp.cpp"
   [fuzz_mjpeg]="drivers/mjpeg_decoder.cpp"
-  [fuzz_lcm]="drivers/lcm_image_source.cpp drivers/mjpeg_decoder.cpp"
+  [fuzz_lcm]="drivers/lcm_image_source.cpp drivers/mjpeg_decoder.cpp firmware_app/lcm_commands.cpp"
   [fuzz_map]="core/map_io.cpp"
 )
 

@@ -98,6 +98,34 @@ TEST(LcmCommands, UnknownMalformedAndUnservableCommandsAreRejectedAndCounted) {
   EXPECT_FALSE(link->localize_only.load());
 }
 
+// The pure part the fuzz target (tests/fuzz/fuzz_lcm.cpp) drives: bytes in, verdict out.
+TEST(LcmCommands, ApplyCommandMessageNamesTheVerdictAndTouchesOnlyTheNamedField) {
+  SlamLink link(2);
+  command_t c;
+  c.utime = 3;
+  c.command = command_t::SAVE_MAP;
+  std::vector<uint8_t> buf(static_cast<size_t>(c.getEncodedSize()));
+  c.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  int8_t code = -1;
+  const auto n = static_cast<uint32_t>(buf.size());
+  EXPECT_EQ(apply_command_message(buf.data(), n, link, /*can_save=*/false, &code),
+            CommandVerdict::kRejected);
+  EXPECT_EQ(code, int8_t{command_t::SAVE_MAP});
+  EXPECT_EQ(link.save_requests.load(), 0u);
+  EXPECT_EQ(apply_command_message(buf.data(), n, link, /*can_save=*/true, &code),
+            CommandVerdict::kAccepted);
+  EXPECT_EQ(link.save_requests.load(), 1u);
+  EXPECT_EQ(apply_command_message(buf.data(), n - 1, link, true, &code),
+            CommandVerdict::kMalformed);
+  EXPECT_EQ(code, 0);
+  buf.push_back(0);  // one byte too many: not exactly a command_t
+  EXPECT_EQ(apply_command_message(buf.data(), n + 1, link, true, &code),
+            CommandVerdict::kMalformed);
+  EXPECT_EQ(link.save_requests.load(), 1u);
+  EXPECT_EQ(link.reset_requests.load(), 0u);
+  EXPECT_FALSE(link.localize_only.load());
+}
+
 TEST(LcmCommands, BadUrlThrows) {
   auto link = std::make_shared<SlamLink>(2);
   EXPECT_THROW(LcmCommands("nosuchprovider://x", "T_COMMAND", link, true), std::runtime_error);
