@@ -1,6 +1,7 @@
 #include "core/camera.h"
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 
 namespace rdslam {
@@ -169,6 +170,42 @@ bool CameraModel::undistort(const Eigen::Vector2d& raw, Eigen::Vector2d* ideal) 
   }
   *ideal = Eigen::Vector2d(fx * q.x() + cx, fy * q.y() + cy);
   return std::isfinite(ideal->x()) && std::isfinite(ideal->y());
+}
+
+bool CameraModel::ideal_in_image(const Eigen::Vector2d& ideal) const {
+  if (!has_distortion()) {
+    return ideal.x() >= 0 && ideal.y() >= 0 && ideal.x() < width && ideal.y() < height;
+  }
+  if (!std::isfinite(ideal.x()) || !std::isfinite(ideal.y())) return false;
+  const Eigen::Vector2d raw = distort(ideal);
+  if (!(raw.x() >= 0 && raw.y() >= 0 && raw.x() < width && raw.y() < height)) return false;
+  return distort_jacobian(ideal).determinant() > 0;
+}
+
+cv::Rect2d CameraModel::ideal_extent() const {
+  if (!has_distortion()) return {0.0, 0.0, double(width), double(height)};
+  double x0 = 0, y0 = 0, x1 = width, y1 = height;
+  auto add = [&](double x, double y) {
+    Eigen::Vector2d u;
+    if (!undistort({x, y}, &u)) return;
+    x0 = std::min(x0, u.x());
+    y0 = std::min(y0, u.y());
+    x1 = std::max(x1, u.x());
+    y1 = std::max(y1, u.y());
+  };
+  for (int x = 0; x < width; ++x) {
+    add(x, 0);
+    add(x, height - 1);
+  }
+  for (int y = 0; y < height; ++y) {
+    add(0, y);
+    add(width - 1, y);
+  }
+  x0 = std::max(x0, -2.0 * width);
+  y0 = std::max(y0, -2.0 * height);
+  x1 = std::min(x1, 3.0 * width);
+  y1 = std::min(y1, 3.0 * height);
+  return {x0, y0, x1 - x0, y1 - y0};
 }
 
 void CameraModel::undistort_points(const std::vector<cv::Point2f>& in,

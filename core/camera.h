@@ -53,6 +53,17 @@ struct CameraModel {
   Eigen::Vector2d project(const Eigen::Vector3d& p_cam) const;
   // d raw / d ideal at an ideal pixel: how a small window around it is stretched in the image.
   Eigen::Matrix2d distort_jacobian(const Eigen::Vector2d& ideal) const;
+  // Whether the camera sees an ideal pixel: its raw pixel lies inside the image and the lens
+  // maps its neighbourhood without folding over (distort_jacobian has a positive
+  // determinant). Without distortion, the ideal pixel lies in [0, width) x [0, height).
+  // Projection-guided matching uses this, not the ideal rectangle: a lens shows ideal pixels
+  // far outside it (a 150-degree fisheye's corner is about 900 px out). Allocates nothing.
+  bool ideal_in_image(const Eigen::Vector2d& ideal) const;
+  // The rectangle holding the ideal pixels of every raw pixel of the image (the undistorted
+  // image border's bounding box, joined with [0, width] x [0, height] and clipped to
+  // [-2 width, 3 width] x [-2 height, 3 height]); (0, 0, width, height) without distortion.
+  // Walks the border: start-up only.
+  cv::Rect2d ideal_extent() const;
   // Raw pixel -> ideal pixel by Newton's method on distort() (|distort(ideal) - raw| below
   // 1e-9 px). False when it does not converge, or (equidistant) the ray lies 90 degrees or
   // more off the optical axis and has no ideal pixel.

@@ -81,15 +81,30 @@ std::string FeatureParams::validate() const {
   return {};
 }
 
+void Features::set_grid_extent(const CameraModel& camera) {
+  if (!camera.has_distortion()) {
+    grid_x0 = grid_y0 = grid_w = grid_h = 0.f;
+    return;
+  }
+  const cv::Rect2d e = camera.ideal_extent();
+  grid_x0 = static_cast<float>(std::floor(e.x));
+  grid_y0 = static_cast<float>(std::floor(e.y));
+  grid_w = static_cast<float>(std::ceil(e.x + e.width)) - grid_x0;
+  grid_h = static_cast<float>(std::ceil(e.y + e.height)) - grid_y0;
+}
+
 void Features::build_grid() {
-  grid_cols = std::max(1, static_cast<int>(std::ceil(width / cell_px)));
-  grid_rows = std::max(1, static_cast<int>(std::ceil(height / cell_px)));
+  const float gw = grid_w > 0.f ? grid_w : float(width);
+  const float gh = grid_h > 0.f ? grid_h : float(height);
+  const float ox = grid_w > 0.f ? grid_x0 : 0.f, oy = grid_h > 0.f ? grid_y0 : 0.f;
+  grid_cols = std::max(1, static_cast<int>(std::ceil(gw / cell_px)));
+  grid_rows = std::max(1, static_cast<int>(std::ceil(gh / cell_px)));
   const int ncell = grid_cols * grid_rows;
   cell_start.assign(ncell + 1, 0);
   if (static_cast<int>(cell_items.size()) < count) cell_items.resize(kps.size());
   auto cell_of = [&](int i) {
-    const int cx = std::min(grid_cols - 1, std::max(0, static_cast<int>(un[i].x / cell_px)));
-    const int cy = std::min(grid_rows - 1, std::max(0, static_cast<int>(un[i].y / cell_px)));
+    const int cx = std::min(grid_cols - 1, std::max(0, static_cast<int>((un[i].x - ox) / cell_px)));
+    const int cy = std::min(grid_rows - 1, std::max(0, static_cast<int>((un[i].y - oy) / cell_px)));
     return cy * grid_cols + cx;
   };
   for (int i = 0; i < count; ++i) ++cell_start[cell_of(i) + 1];
@@ -103,10 +118,11 @@ void Features::build_grid() {
 int Features::radius_search(float x, float y, float radius, int min_level, int max_level, int* out,
                             int cap) const {
   if (grid_cols == 0) return 0;
-  const int x0 = std::max(0, static_cast<int>((x - radius) / cell_px));
-  const int x1 = std::min(grid_cols - 1, static_cast<int>((x + radius) / cell_px));
-  const int y0 = std::max(0, static_cast<int>((y - radius) / cell_px));
-  const int y1 = std::min(grid_rows - 1, static_cast<int>((y + radius) / cell_px));
+  const float ox = grid_w > 0.f ? grid_x0 : 0.f, oy = grid_h > 0.f ? grid_y0 : 0.f;
+  const int x0 = std::max(0, static_cast<int>((x - radius - ox) / cell_px));
+  const int x1 = std::min(grid_cols - 1, static_cast<int>((x + radius - ox) / cell_px));
+  const int y0 = std::max(0, static_cast<int>((y - radius - oy) / cell_px));
+  const int y1 = std::min(grid_rows - 1, static_cast<int>((y + radius - oy) / cell_px));
   if (x1 < 0 || y1 < 0 || x0 >= grid_cols || y0 >= grid_rows) return 0;
   const float r2 = radius * radius;
   int n = 0;
@@ -145,6 +161,10 @@ void Features::copy_from(const Features& o) {
   }
   if (count > 0) o.desc.rowRange(0, count).copyTo(desc.rowRange(0, count));
   cell_px = o.cell_px;
+  grid_x0 = o.grid_x0;
+  grid_y0 = o.grid_y0;
+  grid_w = o.grid_w;
+  grid_h = o.grid_h;
   build_grid();
 }
 
@@ -220,6 +240,12 @@ FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraMode
       }
     }
   }
+  Features extent;
+  extent.set_grid_extent(camera_);
+  grid_x0_ = extent.grid_x0;
+  grid_y0_ = extent.grid_y0;
+  grid_w_ = extent.grid_w;
+  grid_h_ = extent.grid_h;
   if (params_.is_sift()) sift_ = cv::SIFT::create(params_.max_features);
 }
 
@@ -242,6 +268,10 @@ void FeatureExtractor::prepare(Features& out, int w, int h) const {
   out.height = h;
   out.count = 0;
   out.cell_px = static_cast<float>(std::max(16, params_.grid_cell_px / 2));
+  out.grid_x0 = grid_x0_;
+  out.grid_y0 = grid_y0_;
+  out.grid_w = grid_w_;
+  out.grid_h = grid_h_;
 }
 
 void FeatureExtractor::extract(const cv::Mat& gray, Features& out) {

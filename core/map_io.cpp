@@ -215,6 +215,7 @@ void read_features(Reader& r, Features& f, bool binary, int desc_bytes, const Ca
   }
   f.cell_px = r.pod<float>("keyframe grid cell");
   if (!(f.cell_px >= 1.f && f.cell_px <= 4096.f)) r.fail("keyframe grid cell");
+  f.set_grid_extent(cam);  // the grid covers what the lens shows (not stored: the camera's)
   f.binary = binary;
   const size_t n = static_cast<size_t>(count);
   f.kps.resize(n);

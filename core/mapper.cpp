@@ -469,7 +469,7 @@ int Mapper::project_and_add(int64_t pid, int kf_id) {
   if (pc.z() <= 1e-6) return 0;
   const Eigen::Vector2d uv = K_.project(pc);
   const Features& f = k->features;
-  if (uv.x() < 0 || uv.y() < 0 || uv.x() >= f.width || uv.y() >= f.height) return 0;
+  if (!camera_.ideal_in_image(uv)) return 0;
   const Eigen::Vector3d v = k->T_cam_world.centre() - p->p_world;
   const double dist = v.norm();
   const bool bin = fparams_.binary();
@@ -1082,9 +1082,7 @@ int Mapper::match_by_projection(const Keyframe& A, const Keyframe& B, const Map&
       const Eigen::Vector3d pc = Ta * p.p_world;
       if (pc.z() <= 1e-6) continue;
       const Eigen::Vector2d uv = K_.project(pc);
-      if (uv.x() < 0 || uv.y() < 0 || uv.x() >= A.features.width || uv.y() >= A.features.height) {
-        continue;
-      }
+      if (!camera_.ideal_in_image(uv)) continue;
       const double dist = (ca - p.p_world).norm();
       int lvl = 0;
       if (bin) lvl = predict_level(p.max_dist, dist, log_sf, std::max(1, fparams_.levels));

@@ -159,7 +159,8 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   rot_kf_.desc.create(static_cast<int>(cap), features.is_sift() ? 128 : 32,
                       features.is_sift() ? CV_32F : CV_8U);
   rot_kf_.cell_items.resize(cap);  // its grid (copy_from builds it): cells of >= 8 px
-  rot_kf_.cell_start.reserve(static_cast<size_t>((camera.width / 8 + 1) * (camera.height / 8 + 1)) +
+  const cv::Rect2d extent = camera.ideal_extent();  // the grid's rectangle (a lens widens it)
+  rot_kf_.cell_start.reserve(static_cast<size_t>((extent.width / 8 + 2) * (extent.height / 8 + 2)) +
                              1);
   rot_bearing_.assign(cap, Eigen::Vector3d::Zero());
   bear_of_.assign(cap, -1);
@@ -223,7 +224,7 @@ int Tracker::match_motion(const Pose& T, double radius) {
     const Eigen::Vector3d pc = T * last_.p[i];
     if (pc.z() <= 1e-6) continue;
     const Eigen::Vector2d uv = K_.project(pc);
-    if (uv.x() < 0 || uv.y() < 0 || uv.x() >= cur_.f.width || uv.y() >= cur_.f.height) continue;
+    if (!camera_.ideal_in_image(uv)) continue;
     const int lvl = last_.f.level[i];
     const int n = cur_.f.radius_search(
         float(uv.x()), float(uv.y()), float(radius * last_.f.scale[i]), bin ? lvl - 1 : -1,
@@ -261,7 +262,7 @@ int Tracker::match_local_map(const Pose& T, double radius) {
     const Eigen::Vector3d pc = T * p;
     if (pc.z() <= 1e-6) continue;
     const Eigen::Vector2d uv = K_.project(pc);
-    if (uv.x() < 0 || uv.y() < 0 || uv.x() >= cur_.f.width || uv.y() >= cur_.f.height) continue;
+    if (!camera_.ideal_in_image(uv)) continue;
     const Eigen::Vector3d v = c - p;
     const double dist = v.norm();
     if (bin && (dist < s.min_dist[r] || dist > s.max_dist[r])) continue;

@@ -81,7 +81,7 @@ int Tracker::match_bearings(const Eigen::Matrix3d& R_cam_world, double radius) {
     const Eigen::Vector3d Xc = R_cam_world * rot_bearing_[i];
     if (Xc.z() <= 1e-6) continue;
     const Eigen::Vector2d uv = K_.project(Xc);
-    if (uv.x() < 0 || uv.y() < 0 || uv.x() >= cur_.f.width || uv.y() >= cur_.f.height) continue;
+    if (!camera_.ideal_in_image(uv)) continue;
     const int lvl = rot_kf_.level[i];
     const int n = cur_.f.radius_search(
         float(uv.x()), float(uv.y()), float(radius * rot_kf_.scale[i]), bin ? lvl - 1 : -1,

@@ -99,6 +99,43 @@ TEST(Camera, JacobianIsTheDerivativeOfDistort) {
   }
 }
 
+// What the camera sees is decided through the lens: an ideal pixel far outside the ideal
+// rectangle is in view when its raw pixel is in the image, and an ideal pixel inside the
+// rectangle is not when the lens puts it outside.
+TEST(Camera, InViewThroughTheLensNotTheIdealRectangle) {
+  CameraModel pin;
+  EXPECT_TRUE(pin.ideal_in_image({0, 0}));
+  EXPECT_TRUE(pin.ideal_in_image({639.9, 479.9}));
+  EXPECT_FALSE(pin.ideal_in_image({640, 100}));
+  EXPECT_FALSE(pin.ideal_in_image({-0.1, 100}));
+  const cv::Rect2d pe = pin.ideal_extent();
+  EXPECT_EQ(pe, cv::Rect2d(0, 0, 640, 480));
+  for (const CameraModel& cam : {radtan(), fisheye()}) {
+    // The raw image corner (1, 1), seen through the lens, is in view wherever its ideal pixel is.
+    Eigen::Vector2d corner;
+    ASSERT_TRUE(cam.undistort({1, 1}, &corner)) << cam.model;
+    EXPECT_TRUE(cam.ideal_in_image(corner)) << cam.model;
+    // Just outside the raw image is out of view.
+    Eigen::Vector2d out;
+    ASSERT_TRUE(cam.undistort({-1.5, 240}, &out)) << cam.model;
+    EXPECT_FALSE(cam.ideal_in_image(out)) << cam.model;
+    // The extent holds the ideal pixels of the whole border.
+    const cv::Rect2d e = cam.ideal_extent();
+    EXPECT_LE(e.x, corner.x()) << cam.model;
+    EXPECT_LE(e.y, corner.y()) << cam.model;
+  }
+  // The fisheye's corner lies hundreds of pixels outside the ideal rectangle, yet in view.
+  Eigen::Vector2d corner;
+  ASSERT_TRUE(fisheye().undistort({1, 1}, &corner));
+  EXPECT_LT(corner.x(), -300);
+  EXPECT_TRUE(fisheye().ideal_in_image(corner));
+  // Pincushion (k1 > 0): the ideal rectangle's corner maps outside the image: not in view.
+  CameraModel pc;
+  pc.k1 = 0.3;
+  EXPECT_FALSE(pc.ideal_in_image({1, 1}));
+  EXPECT_TRUE(pc.ideal_in_image({319.5, 239.5}));
+}
+
 TEST(Camera, EquidistantIsADistortionEvenWithZeroCoefficients) {
   CameraModel c;
   EXPECT_FALSE(c.has_distortion());

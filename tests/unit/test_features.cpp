@@ -106,6 +106,40 @@ TEST(Features, RadiusSearchMatchesBruteForce) {
   }
 }
 
+// Through a lens the ideal (undistorted) coordinates of border features lie far outside the
+// ideal rectangle (a 150-degree fisheye's corners about 900 px out): the grid covers the
+// camera's ideal_extent(), so the radius search finds every one of them, as brute force does.
+TEST(Features, RadiusSearchFindsLensBorderFeaturesBeyondTheRectangle) {
+  FeatureParams p;
+  CameraModel c = cam(640, 480);
+  c.model = "pinhole-equidistant";
+  c.fx = c.fy = 305;
+  c.cx = 319.5;
+  c.cy = 239.5;
+  FeatureExtractor ex(p, c);
+  Features f;
+  ex.extract(textured(640, 480, 5), f);
+  ASSERT_GT(f.count, 500);
+  std::vector<int> out(4096);
+  int outside = 0;
+  for (int i = 0; i < f.count; ++i) {
+    const float x = f.un[i].x, y = f.un[i].y;
+    if (x >= 0 && y >= 0 && x < 640 && y < 480) continue;
+    ++outside;
+    const float r = 6.f;
+    const int n = f.radius_search(x, y, r, 0, 100, out.data(), 4096);
+    int brute = 0;
+    for (int k = 0; k < f.count; ++k) {
+      const float dx = f.un[k].x - x, dy = f.un[k].y - y;
+      brute += dx * dx + dy * dy <= r * r;
+    }
+    EXPECT_EQ(n, brute) << "feature " << i << " at ideal (" << x << ", " << y << ")";
+    EXPECT_GE(n, 1);
+  }
+  // A good share of a fisheye's features lies outside the ideal rectangle.
+  EXPECT_GT(outside, f.count / 5);
+}
+
 TEST(Features, BadInputGivesNoFeatures) {
   FeatureParams p;
   FeatureExtractor ex(p, cam(640, 480));
