@@ -137,15 +137,102 @@ int select_closest_keyframes(const Eigen::Vector3d& cur_z_axis, const Eigen::Vec
 
 namespace {
 
-inline float sample_bilinear(const cv::Mat& img, double x, double y, int c) {
-  const int x0 = static_cast<int>(std::floor(x));
-  const int y0 = static_cast<int>(std::floor(y));
-  const float ax = float(x - x0), ay = float(y - y0);
-  const int ch = img.channels();
-  const uint8_t* r0 = img.ptr<uint8_t>(y0);
-  const uint8_t* r1 = img.ptr<uint8_t>(y0 + 1);
-  const float v00 = r0[x0 * ch + c], v01 = r0[(x0 + 1) * ch + c];
-  const float v10 = r1[x0 * ch + c], v11 = r1[(x0 + 1) * ch + c];
+// Eq. (2)'s shift scoring. The current image is sampled once on the grid of the window plus
+// the search margin (ch planes of gw x gw doubles, each the float bilinear sample); every shift
+// d is then one window of that grid. A shift's score is three sequential sums over the window
+// (mean, absolute deviation, SAD; channels, rows, columns in this order), each a chain of
+// dependent double additions whose latency, not the arithmetic, bounds the time. Several
+// shifts are scored at once (L lanes), each lane keeping exactly the order of additions of a
+// shift scored alone, so the chains overlap and every score is the same to the last bit.
+struct ShiftScoring {
+  const double* grid;  // ch planes of gw * gw
+  const double* kv;    // ch planes of w * w: the keyframe window (zero-mean when normalising)
+  int gw, w, ch;
+  bool normalise;
+  double k_dev_all;
+};
+
+// Scores the L shifts whose windows start at grid offsets offs[0..L) into out[0..L). A lane
+// whose SAD reaches abort_at after a channel (when all lanes of the group do) stops there:
+// its partial sum is >= abort_at, which must be >= the running minimum, so the minimum and
+// the `accept` decisions do not change (the caller's original loop stopped the same way).
+template <int L>
+void score_shifts(const ShiftScoring& s, const int* offs, double abort_at, double* out) {
+  const int plane = s.gw * s.gw, w = s.w, n = w * w;
+  double mean[L], g[L], sum[L];
+  for (int k = 0; k < L; ++k) {
+    mean[k] = 0;
+    g[k] = 1.0;
+    sum[k] = 0;
+  }
+  const double* p[L];
+  if (s.normalise) {
+    for (int c = 0; c < s.ch; ++c) {
+      for (int wy = 0; wy < w; ++wy) {
+        for (int k = 0; k < L; ++k) p[k] = s.grid + c * plane + offs[k] + wy * s.gw;
+        for (int wx = 0; wx < w; ++wx) {
+          for (int k = 0; k < L; ++k) mean[k] += p[k][wx];
+        }
+      }
+    }
+    for (int k = 0; k < L; ++k) mean[k] /= double(n) * s.ch;
+    double dev[L];
+    for (int k = 0; k < L; ++k) dev[k] = 0;
+    for (int c = 0; c < s.ch; ++c) {
+      for (int wy = 0; wy < w; ++wy) {
+        for (int k = 0; k < L; ++k) p[k] = s.grid + c * plane + offs[k] + wy * s.gw;
+        for (int wx = 0; wx < w; ++wx) {
+          for (int k = 0; k < L; ++k) dev[k] += std::fabs(p[k][wx] - mean[k]);
+        }
+      }
+    }
+    for (int k = 0; k < L; ++k) {
+      // Gain that maps the current window's contrast onto the keyframe's, bounded: a
+      // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
+      g[k] = dev[k] > 1e-6 ? s.k_dev_all / dev[k] : kMaxAppearanceGain;
+      g[k] = std::clamp(g[k], 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
+    }
+  }
+  for (int c = 0; c < s.ch; ++c) {
+    bool live = false;
+    for (int k = 0; k < L; ++k) live |= sum[k] < abort_at;
+    if (!live) break;
+    const double* kc = s.kv + c * n;
+    for (int wy = 0; wy < w; ++wy) {
+      for (int k = 0; k < L; ++k) p[k] = s.grid + c * plane + offs[k] + wy * s.gw;
+      const double* kr = kc + wy * w;
+      if (s.normalise) {
+        for (int wx = 0; wx < w; ++wx) {
+          for (int k = 0; k < L; ++k) sum[k] += std::fabs(kr[wx] - g[k] * (p[k][wx] - mean[k]));
+        }
+      } else {  // g = 1, mean = 0: kr - 1 * (v - 0) is kr - v exactly
+        for (int wx = 0; wx < w; ++wx) {
+          for (int k = 0; k < L; ++k) sum[k] += std::fabs(kr[wx] - p[k][wx]);
+        }
+      }
+    }
+  }
+  for (int k = 0; k < L; ++k) out[k] = sum[k];
+}
+
+// Bilinear sample weights of one grid column (or row): the pixel left of (above) the sample
+// and the float weight of the next one, as the per-sample formula computes them.
+struct Tap {
+  int i0;
+  float a;
+};
+
+inline Tap tap(double v) {
+  const int i0 = static_cast<int>(std::floor(v));
+  return {i0, float(v - i0)};
+}
+
+// One bilinear sample, the formula of the reference definition (tests/support/
+// appearance_reference.h) with its weights precomputed: the same float operations in the same
+// order, so the same float.
+inline float bilinear(const uint8_t* r0, const uint8_t* r1, int i0, int i1, float ax, float ay) {
+  const float v00 = r0[i0], v01 = r0[i1];
+  const float v10 = r1[i0], v11 = r1[i1];
   return (1 - ay) * ((1 - ax) * v00 + ax * v01) + ay * ((1 - ax) * v10 + ax * v11);
 }
 
@@ -161,6 +248,12 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
                                search_d, normalise, accept);
 }
 
+// The definition is the reference in tests/support/appearance_reference.h (the plain loops:
+// sample the grid per pixel and channel, then score the shifts one by one, ring by ring); this
+// computes the same values faster: weights per grid point instead of per channel (per column
+// and per row when A is diagonal, the common case, with a horizontal pass shared by the rows),
+// and the shifts of a ring scored together (score_shifts). Every float and double operation
+// is the reference's, in the reference's order; test_change_detection checks the two agree.
 double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2d& x,
                              const cv::Mat& current_image, const Eigen::Vector2d& x_prime,
                              const Eigen::Matrix2d& A, int window, int search_d, bool normalise,
@@ -195,14 +288,15 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
   const int w = 2 * h + 1;
   const int n = w * w;
   const int D = search_d;
+  // No shift to try (D < 0: the minimum over none is +inf) or beyond the buffers.
+  if (D < 0 || D > 8) return kInf;
   const int gw = w + 2 * D;  // sampled grid: the window plus the search margin
-  // Keyframe window (per channel zero-mean when normalising) and the current image sampled
-  // once on the warped grid y' = x' + s (y - x + d): the local search d runs in keyframe-window
-  // units (s d current pixels, s the depth ratio, near 1 for the selected keyframes). Stack
-  // buffers: no allocation.
+  // Keyframe window (zero-mean when normalising) and the current image sampled once on the
+  // warped grid y' = x' + A (y - x + d): the local search d runs in keyframe-window units (s d
+  // current pixels, s the depth ratio, near 1 for the selected keyframes). Stack buffers: no
+  // allocation.
+  constexpr int kMaxGrid = kMaxAppearanceWindow + 2 * 8;
   float kv[3][kMaxAppearanceWindow * kMaxAppearanceWindow];
-  float grid[3][(kMaxAppearanceWindow + 2 * 8) * (kMaxAppearanceWindow + 2 * 8)];
-  if (D > 8) return kInf;
   double k_mean[3] = {0, 0, 0}, k_dev[3] = {0, 0, 0};
   for (int wy = -h; wy <= h; ++wy) {
     const uint8_t* krow = keyframe_image.ptr<uint8_t>(ky + wy);
@@ -240,59 +334,113 @@ double appearance_difference(const cv::Mat& keyframe_image, const Eigen::Vector2
       x_prime.y() + reach_gy >= current_image.rows - 1) {
     return kInf;
   }
-  for (int gy = 0; gy < gw; ++gy) {
-    const double oy = gy - h - D + off_y;
-    for (int gx = 0; gx < gw; ++gx) {
-      const double ox = gx - h - D + off_x;
-      const double cx = x_prime.x() + (A(0, 0) * ox + A(0, 1) * oy);
-      const double cy = x_prime.y() + (A(1, 0) * ox + A(1, 1) * oy);
-      for (int c = 0; c < ch; ++c)
-        grid[c][gy * gw + gx] = sample_bilinear(current_image, cx, cy, c);
+  // The grid, ch planes of gw x gw (doubles: every sum below reads a grid value as a double).
+  double grid[3 * kMaxGrid * kMaxGrid];
+  double kvd[3 * kMaxAppearanceWindow * kMaxAppearanceWindow];
+  for (int c = 0; c < ch; ++c) {
+    for (int i = 0; i < n; ++i) kvd[c * n + i] = kv[c][i];
+  }
+  const int plane = gw * gw;
+  if (A(0, 1) == 0 && A(1, 0) == 0) {
+    // Diagonal A: column gx samples at the same x for every row and row gy at the same y
+    // (x'.x + (A00 ox + 0 oy) is x'.x + A00 ox: x'.x > 0 absorbs the sign of a zero). Each
+    // image row's horizontal interpolation (1 - ax) v0 + ax v1 is computed once per column and
+    // shared by the grid rows that read it (with scale 1, every image row serves two).
+    Tap tx[kMaxGrid];
+    for (int gx = 0; gx < gw; ++gx) tx[gx] = tap(x_prime.x() + A(0, 0) * (gx - h - D + off_x));
+    float hrow[2][3 * kMaxGrid];  // the horizontal pass of two image rows, [c][gx]
+    int hrow_y[2] = {-1, -1};
+    // The buffer holding image row y, filled if needed without evicting buffer `keep`.
+    auto horizontal = [&](int y, int keep) -> int {
+      for (int b = 0; b < 2; ++b) {
+        if (hrow_y[b] == y) return b;
+      }
+      const int b = keep >= 0 ? 1 - keep : (hrow_y[0] == y + 1 ? 1 : 0);
+      hrow_y[b] = y;
+      const uint8_t* r = current_image.ptr<uint8_t>(y);
+      for (int c = 0; c < ch; ++c) {
+        for (int gx = 0; gx < gw; ++gx) {
+          const float a = tx[gx].a;
+          const float v0 = r[tx[gx].i0 * ch + c], v1 = r[(tx[gx].i0 + 1) * ch + c];
+          hrow[b][c * kMaxGrid + gx] = (1 - a) * v0 + a * v1;
+        }
+      }
+      return b;
+    };
+    for (int gy = 0; gy < gw; ++gy) {
+      const Tap ty = tap(x_prime.y() + A(1, 1) * (gy - h - D + off_y));
+      const int b0 = horizontal(ty.i0, -1);
+      const float* h0 = hrow[b0];
+      const float* h1 = hrow[horizontal(ty.i0 + 1, b0)];
+      const float b = ty.a;
+      for (int c = 0; c < ch; ++c) {
+        double* out = grid + c * plane + gy * gw;
+        const float* t0 = h0 + c * kMaxGrid;
+        const float* t1 = h1 + c * kMaxGrid;
+        for (int gx = 0; gx < gw; ++gx) out[gx] = (1 - b) * t0[gx] + b * t1[gx];
+      }
+    }
+  } else {
+    // A general warp (a lens): the weights once per grid point for all channels.
+    const size_t step = current_image.step[0];
+    const uint8_t* base = current_image.ptr<uint8_t>(0);
+    for (int gy = 0; gy < gw; ++gy) {
+      const double oy = gy - h - D + off_y;
+      for (int gx = 0; gx < gw; ++gx) {
+        const double ox = gx - h - D + off_x;
+        const double cx = x_prime.x() + (A(0, 0) * ox + A(0, 1) * oy);
+        const double cy = x_prime.y() + (A(1, 0) * ox + A(1, 1) * oy);
+        const Tap tx = tap(cx), ty = tap(cy);
+        const uint8_t* r0 = base + size_t(ty.i0) * step;
+        const uint8_t* r1 = r0 + step;
+        for (int c = 0; c < ch; ++c) {
+          grid[c * plane + gy * gw + gx] =
+              bilinear(r0, r1, tx.i0 * ch + c, (tx.i0 + 1) * ch + c, tx.a, ty.a);
+        }
+      }
     }
   }
+  const ShiftScoring scoring{grid, kvd, gw, w, ch, normalise, k_dev_all};
   const double unit = normalise ? k_dev_all : double(n) * ch;
   const double accept_sum = accept * unit;
-  double best = kInf;
-  // Shifts ring by ring from the centre (r = max(|dx|, |dy|)), so `accept` stops early.
+  // Shifts ring by ring from the centre (r = max(|dx|, |dy|)), so `accept` stops early; the
+  // scores of a group of shifts are walked in that order, with the reference's minimum and
+  // early exit. Ring r >= 1 holds 8 r shifts: groups of 8.
+  constexpr int kGroup = 8;
+  int offs[(2 * 8 + 1) * (2 * 8 + 1)];
+  int count = 0;
   for (int r = 0; r <= D; ++r) {
     for (int ddy = -r; ddy <= r; ++ddy) {
       for (int ddx = -r; ddx <= r; ++ddx) {
-        if (std::max(std::abs(ddx), std::abs(ddy)) != r) continue;
-        const int dy = ddy + D, dx = ddx + D;
-        double sum = 0;
-        double mean = 0, g = 1.0;
-        if (normalise) {
-          for (int c = 0; c < ch; ++c) {
-            const float* g0 = grid[c] + dy * gw + dx;
-            for (int wy = 0; wy < w; ++wy) {
-              for (int wx = 0; wx < w; ++wx) mean += g0[wy * gw + wx];
-            }
-          }
-          mean /= double(n) * ch;
-          double dev = 0;
-          for (int c = 0; c < ch; ++c) {
-            const float* g0 = grid[c] + dy * gw + dx;
-            for (int wy = 0; wy < w; ++wy) {
-              for (int wx = 0; wx < w; ++wx) dev += std::fabs(g0[wy * gw + wx] - mean);
-            }
-          }
-          // Gain that maps the current window's contrast onto the keyframe's, bounded: a
-          // contrast ratio beyond kMaxAppearanceGain is a different texture, not lighting.
-          g = dev > 1e-6 ? k_dev_all / dev : kMaxAppearanceGain;
-          g = std::clamp(g, 1.0 / kMaxAppearanceGain, kMaxAppearanceGain);
-        }
-        for (int c = 0; c < ch && sum < best; ++c) {
-          const float* g0 = grid[c] + dy * gw + dx;
-          const float* kc = kv[c];
-          for (int wy = 0; wy < w; ++wy) {
-            const float* gr = g0 + wy * gw;
-            const float* kr = kc + wy * w;
-            for (int wx = 0; wx < w; ++wx) sum += std::fabs(kr[wx] - g * (gr[wx] - mean));
-          }
-        }
-        best = std::min(best, sum);
-        if (best <= accept_sum) return best / unit;
+        if (std::max(std::abs(ddx), std::abs(ddy)) == r) offs[count++] = (ddy + D) * gw + ddx + D;
       }
+    }
+  }
+  double scores[(2 * 8 + 1) * (2 * 8 + 1)];
+  double best = kInf;
+  if (!(accept_sum >= 0)) {
+    // No score can be <= accept_sum (scores are >= 0): the result is the minimum over all
+    // shifts, whatever the order. count = 8 m + 1: groups of 8 and one of 9.
+    if (count == 1) {
+      score_shifts<1>(scoring, offs, best, scores);
+    } else {
+      int i = 0;
+      for (; count - i > kGroup + 1; i += kGroup)
+        score_shifts<kGroup>(scoring, offs + i, best, scores + i);
+      score_shifts<kGroup + 1>(scoring, offs + i, best, scores + i);
+    }
+    for (int i = 0; i < count; ++i) best = std::min(best, scores[i]);
+    return best / unit;
+  }
+  // The centre first (an unchanged window usually matches there), then the rings.
+  score_shifts<1>(scoring, offs, best, scores);
+  best = std::min(best, scores[0]);
+  if (best <= accept_sum) return best / unit;
+  for (int i = 1; i < count; i += kGroup) {
+    score_shifts<kGroup>(scoring, offs + i, best, scores + i);
+    for (int j = i; j < i + kGroup; ++j) {
+      best = std::min(best, scores[j]);
+      if (best <= accept_sum) return best / unit;
     }
   }
   // Relative residual (normalise): the keyframe window's own contrast is the unit.

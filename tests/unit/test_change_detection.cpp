@@ -2,10 +2,13 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
+#include <random>
 
 #include "core/change_detection.h"
+#include "tests/support/appearance_reference.h"
 
 using namespace rdslam;
 
@@ -228,6 +231,118 @@ TEST(FlowRejection, RejectsPointsOnAMovingBlockOnly) {
   EXPECT_EQ(keep[0], 0);
   EXPECT_EQ(keep[1], 1);
   EXPECT_EQ(keep[2], 1);
+}
+
+// The optimised appearance_difference() (precomputed weights, separable sampling, shifts
+// scored together) against its definition, the plain loops kept verbatim in
+// tests/support/appearance_reference.h: random grey and BGR images, plain and normalised
+// scores, scale and general warps, sub-pixel x, every search_d 0..8 (and the invalid -1, 9),
+// with and without `accept`, windows near the borders. The current image is mostly the
+// keyframe warped by the same A and shifted by an integer d0 within the search (so the
+// minimum and `accept` fall on every ring), else an unrelated texture, a lighting change or a
+// flat image. Equal to float rounding (relative 1e-5, the same infinities); on x86-64 they
+// are the same doubles.
+TEST(AppearanceDifference, OptimisedMatchesTheReferenceDefinition) {
+  std::mt19937 rng(20261204);
+  auto uni = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  auto pick = [&](int a, int b) { return std::uniform_int_distribution<int>(a, b)(rng); };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  int finite = 0, identical = 0, accepted = 0, general = 0, coloured = 0;
+  int finite_by_d[9] = {};
+  for (int i = 0; i < 1500; ++i) {
+    SCOPED_TRACE(i);
+    const int ch = pick(0, 1) ? 3 : 1;
+    const int cols = pick(50, 160), rows = pick(50, 130);
+    cv::Mat kf(rows, cols, CV_8UC(ch));
+    cv::randu(kf, 0, 256);
+    const int blur = 2 * pick(0, 3) + 1;
+    cv::GaussianBlur(kf, kf, cv::Size(blur, blur), 0);
+    // Window: mostly the default 11, else any size up to the maximum (even ones too).
+    const int window = pick(0, 2) ? 11 : pick(1, kMaxAppearanceWindow);
+    const int D = pick(0, 40) == 0 ? (pick(0, 1) ? -1 : 9) : pick(0, 8);
+    // Warp: scale I (most), a diagonal with two scales (some with a 180 deg turn), or general.
+    Eigen::Matrix2d A;
+    const int kind = pick(0, 9);
+    if (kind < 5) {
+      A = uni(0.5, 2.0) * Eigen::Matrix2d::Identity();
+    } else if (kind < 7) {
+      A << uni(0.6, 1.6), 0, 0, uni(0.6, 1.6);
+      if (kind == 6 && pick(0, 1)) A = -A;
+    } else {
+      A = Eigen::Rotation2Dd(uni(-0.3, 0.3)).toRotationMatrix() * uni(0.7, 1.4);
+      A(0, 1) += uni(-0.2, 0.2);
+      A(1, 0) += uni(-0.2, 0.2);
+    }
+    const bool is_general = A(0, 1) != 0 || A(1, 0) != 0;
+    // x, x': sub-pixel; one case in four anywhere (windows near and over the borders), else
+    // where the window and the search fit more often than not.
+    const int ccols = pick(50, 160), crows = pick(50, 130);
+    auto point = [&](int w, int h) {
+      const double m = pick(0, 3) ? window / 2 + std::max(D, 0) + 2.0 : -2.0;
+      return Eigen::Vector2d(uni(m, w - 1 - m), uni(m, h - 1 - m));
+    };
+    const Eigen::Vector2d x = point(cols, rows), xp = point(ccols, crows);
+    cv::Mat cur;
+    const int content = pick(0, 9);
+    if (content < 6) {
+      // The keyframe seen through A, shifted by d0: cur(p') = kf(x + d0 + A^-1 (p' - x')).
+      const Eigen::Matrix2d Ai = A.inverse();
+      const Eigen::Vector2d d0(pick(-std::max(D, 0), std::max(D, 0)),
+                               pick(-std::max(D, 0), std::max(D, 0)));
+      const Eigen::Vector2d t = x + d0 - Ai * xp;
+      const cv::Matx23d M(Ai(0, 0), Ai(0, 1), t.x(), Ai(1, 0), Ai(1, 1), t.y());
+      cv::warpAffine(kf, cur, M, cv::Size(ccols, crows), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                     cv::BORDER_REFLECT);
+      if (content >= 4) cur.convertTo(cur, -1, uni(0.5, 1.8), uni(-40, 40));  // lighting
+      if (content == 5) {                                                     // noise on top
+        cv::Mat noise(cur.size(), cur.type());
+        cv::randn(noise, 0, 6);
+        cv::add(cur, noise, cur);
+      }
+    } else if (content < 9) {
+      cur.create(crows, ccols, CV_8UC(ch));
+      cv::randu(cur, 0, 256);
+      cv::GaussianBlur(cur, cur, cv::Size(5, 5), 0);
+    } else {
+      cur = cv::Mat(crows, ccols, CV_8UC(ch), cv::Scalar::all(pick(0, 255)));
+    }
+    if (pick(0, 19) == 0) kf = cv::Scalar::all(pick(0, 255));  // a flat keyframe window
+    const bool normalise = pick(0, 1);
+    double accept = -kInf;
+    const int a = pick(0, 9);
+    if (a >= 4) accept = normalise ? uni(0, 1.2) : uni(0, 40);
+    if (a == 3) accept = kInf;
+    if (a == 2) accept = 0;
+
+    double ref, opt;
+    if (!is_general && A(0, 0) == A(1, 1) && A(0, 0) > 0 && pick(0, 1)) {
+      ref = test::reference_appearance_difference(kf, x, cur, xp, A(0, 0), window, D, normalise,
+                                                  accept);
+      opt = appearance_difference(kf, x, cur, xp, A(0, 0), window, D, normalise, accept);
+    } else {
+      ref = test::reference_appearance_difference(kf, x, cur, xp, A, window, D, normalise, accept);
+      opt = appearance_difference(kf, x, cur, xp, A, window, D, normalise, accept);
+    }
+    ASSERT_EQ(std::isinf(ref), std::isinf(opt)) << ref << " " << opt;
+    ASSERT_FALSE(std::isnan(opt));
+    if (std::isinf(ref)) continue;
+    ASSERT_NEAR(opt, ref, 1e-5 * std::fabs(ref) + 1e-12);
+    ++finite;
+    identical += std::memcmp(&ref, &opt, sizeof ref) == 0;
+    accepted += ref <= accept;
+    general += is_general;
+    coloured += ch == 3;
+    if (D >= 0 && D <= 8) ++finite_by_d[D];
+  }
+  // The comparison covers what it claims to: many finite scores, early exits, general warps
+  // and colour, and every search radius.
+  EXPECT_GT(finite, 600);
+  EXPECT_GT(accepted, 150);
+  EXPECT_GT(general, 100);
+  EXPECT_GT(coloured, 250);
+  for (int d = 0; d <= 8; ++d) EXPECT_GT(finite_by_d[d], 20) << "search_d " << d;
+  std::printf("finite %d (identical doubles %d), accepted %d, general warp %d, colour %d\n", finite,
+              identical, accepted, general, coloured);
 }
 
 TEST(AppearanceDifference, NormalisedScoreIgnoresGainAndBiasButSeesATextureChange) {
