@@ -30,6 +30,8 @@ const char* to_string(InitStatus s) {
       return "inconsistent";
     case InitStatus::kFewPoints:
       return "few-points";
+    case InitStatus::kFastMotion:
+      return "fast-motion";
   }
   return "?";
 }
@@ -70,6 +72,9 @@ void InitializerParams::visit(ParamVisitor& v) {
   v.field("rotation_min_flow_frac", rotation_min_flow_frac, 0.0, 1.0,
           "median flow (fraction of image width) from which an inconsistent pair is tried again "
           "with the rotation-consistent matches");
+  v.field("fast_flow_frac", fast_flow_frac, 0.0, 1.0,
+          "median flow (fraction of image width) from which a pair is fast motion: the tracker "
+          "switches to fast_motion_levels and starts initializing again (0: never)");
 }
 
 Initializer::Initializer(const InitializerParams& params, const FeatureParams& features,
@@ -202,6 +207,17 @@ InitStatus Initializer::add_frame(const Features& cur, int64_t stamp_ns, InitRes
     return InitStatus::kNoReference;
   }
   ++ref_age_;
+  return attempt(cur, stamp_ns, out);
+}
+
+InitStatus Initializer::retry_with_reference(const Features& ref, const Features& cur,
+                                             int64_t stamp_ns, InitResult& out) {
+  if (!has_ref_ || cur.count < params_.min_features) return add_frame(cur, stamp_ns, out);
+  ref_.copy_from(ref);  // the same frame (stamp, age), described again
+  return attempt(cur, stamp_ns, out);
+}
+
+InitStatus Initializer::attempt(const Features& cur, int64_t stamp_ns, InitResult& out) {
   attempt_ = InitAttempt{};
   const InitStatus s = evaluate(cur, out);
   const InitAttempt& a = attempt_;
@@ -298,6 +314,10 @@ InitStatus Initializer::evaluate_matches(const Features& cur, InitResult& out, i
   // moving objects). Below it, down to its floor, the pair must show a larger parallax.
   const double med_flow = flow[flow.size() / 2];
   attempt_.median_flow_px = med_flow;
+  if (fast_check_ && params_.fast_flow_frac > 0.0 &&
+      med_flow >= params_.fast_flow_frac * cur.width) {
+    return InitStatus::kFastMotion;
+  }
   if (med_flow < params_.min_median_flow_frac * cur.width) {
     if (params_.low_flow_parallax_deg <= 0.0 ||
         med_flow < params_.low_flow_floor_frac * cur.width) {

@@ -77,10 +77,16 @@ struct InitializerParams {
   // width is tried once more with only the matches whose keypoint angle change falls in the
   // `rotation_keep_bins` fullest of `rotation_bins` histogram bins (a bin below 10% of the
   // fullest is not kept). Fast forward motion (kitti06 `--every 3`: 4.4% median flow) brings many
-  // wrong window matches; the other scenes never reach this retry (0 bins: off).
+  // wrong window matches. With the tracker's fast-motion check on (fast_flow_frac below), such
+  // pairs reach the retry only on the deeper pyramid, after the switch (0 bins: off).
   int rotation_bins = 30;
   int rotation_keep_bins = 3;
   double rotation_min_flow_frac = 0.03;
+  // Fast motion: while the owner asks for it (set_fast_motion_check), a pair whose median flow
+  // is at least `fast_flow_frac` of the image width is not fitted but answered kFastMotion, so
+  // the tracker can switch to its fast-motion pyramid (TrackerParams::fast_motion_levels) and
+  // start again (0: never).
+  double fast_flow_frac = 0.03;
 
   void visit(ParamVisitor& v);
 };
@@ -125,7 +131,8 @@ enum class InitStatus {
   kAmbiguous,
   kLowParallax,
   kInconsistent,
-  kFewPoints
+  kFewPoints,
+  kFastMotion  // median flow >= fast_flow_frac while the fast-motion check is on (not fitted)
 };
 const char* to_string(InitStatus s);
 
@@ -140,8 +147,17 @@ class Initializer {
   int64_t reference_stamp() const { return has_ref_ ? ref_stamp_ : -1; }
   int reference_age() const { return ref_age_; }
   const InitAttempt& last_attempt() const { return attempt_; }
+  // Pairs at fast_flow_frac or more are answered kFastMotion while this is on (off by default).
+  void set_fast_motion_check(bool on) { fast_check_ = on; }
+  // The last attempt again (same reference frame, stamp and age) with both frames' features
+  // described anew, `ref` for the reference (after kFastMotion: on the deeper pyramid).
+  InitStatus retry_with_reference(const Features& ref, const Features& cur, int64_t stamp_ns,
+                                  InitResult& out);
 
  private:
+  // One attempt of `cur` against the reference (steps 1-5), logged; kFewMatches renews the
+  // reference with `cur`.
+  InitStatus attempt(const Features& cur, int64_t stamp_ns, InitResult& out);
   int match(const Features& cur);
   InitStatus evaluate(const Features& cur, InitResult& out);
   // Model fitting and gates (steps 1-5) on the `nm` matches in match_of_ref_.
@@ -162,6 +178,7 @@ class Initializer {
   ClaimTable claims_;  // reference feature -> current feature, best distance wins
   InitAttempt attempt_;
   std::vector<int> rot_hist_, rot_keep_;
+  bool fast_check_ = false;
 };
 
 }  // namespace rdslam

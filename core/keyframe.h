@@ -39,6 +39,7 @@ struct KeyframeCandidate {
   int64_t stamp0_ns = 0;
   cv::Mat image0;
   std::vector<InitPoint, Eigen::aligned_allocator<InitPoint>> init_points;
+  int levels = 0;  // kInit: pyramid levels of the new map's features (0: features.levels)
 };
 
 // One tracked frame for the updater: only the tracked features are carried (their undistorted

@@ -269,6 +269,8 @@ void Mapper::handle_init(const KeyframeCandidate& c) {
   map_ = Map();
   trail_.clear();
   epoch_ = c.epoch;
+  // The tracker's pyramid for this map (TrackerParams::fast_motion_levels after fast motion).
+  if (c.levels > 0) fparams_.levels = c.levels;
   ++stats_.maps_started;
   Keyframe& k0 = map_.keyframes[0];
   k0.id = 0;

@@ -68,6 +68,9 @@ void TrackerParams::visit(ParamVisitor& v) {
           "next rotation-only keyframe when its bearing matches fall below this fraction");
   v.field("rotation_exit_max_shift", rotation_exit_max_shift, 0.0, 10.0,
           "rotation mode ends with a full pose within this x its median depth of the centre");
+  v.field("fast_motion_levels", fast_motion_levels, 0, 8,
+          "ORB pyramid levels once an initialization attempt sees fast motion "
+          "(init_fast_flow_frac; 0 or <= features.levels: off)");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -147,7 +150,14 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   row_stamp_.assign(static_cast<size_t>(max_points) + 4096, -1);
   row_rejected_.assign(row_stamp_.size(), -1);
   kf_votes_.reserve(4096);
-  level_scale_.resize(std::max(1, features.levels));
+  levels_ = std::max(1, features.levels);
+  if (features.binary() && params.fast_motion_levels > features.levels) {
+    FeatureParams fast = features;
+    fast.levels = params.fast_motion_levels;
+    fast_extractor_ = std::make_unique<FeatureExtractor>(fast, camera);
+    initializer_.set_fast_motion_check(true);
+  }
+  level_scale_.resize(std::max(levels_, fast_extractor_ ? params.fast_motion_levels : 0));
   for (size_t l = 0; l < level_scale_.size(); ++l) {
     level_scale_[l] = static_cast<float>(std::pow(features.scale_factor, double(l)));
   }
@@ -251,7 +261,7 @@ int Tracker::match_local_map(const Pose& T, double radius) {
   const MatchRule& rule = fparams_.matching.rule(MatchPurpose::kLocalMap, bin);
   const Eigen::Vector3d c = T.centre();
   const double log_sf = std::log(std::max(1.0001, fparams_.scale_factor));
-  const int L = static_cast<int>(level_scale_.size());
+  const int L = levels_;
   for (int j = 0; j < cur_.f.count; ++j) {
     if (cur_.row[j] >= 0) row_stamp_[cur_.row[j]] = frame_no_;
   }
@@ -531,6 +541,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   if (!slot) return;  // mapper still busy with an old map: try again next frame
   slot->kind = KeyframeCandidate::Kind::kInit;
   slot->epoch = epoch_;
+  slot->levels = levels_;
   slot->stamp_ns = frame.stamp_ns;
   slot->T_cam_world = init.T1;
   slot->features.copy_from(cur_.f);
@@ -802,15 +813,19 @@ TrackResult Tracker::track(const Frame& frame) {
   return result;
 }
 
+void Tracker::extract_features(const cv::Mat& image, Features& out) {
+  const cv::Mat* img = &image;
+  if (image.type() == CV_8UC3) {
+    cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
+    img = &gray_;
+  }
+  (fast_motion_ ? *fast_extractor_ : extractor_).extract(*img, out);
+}
+
 void Tracker::extract(const Frame& frame) {
   // Feature extraction (Sec. 3; ORB or SIFT, FeatureParams) on the grey image; the newest
   // snapshot of the map's points (the mapper's bundle adjustment may have moved them).
-  const cv::Mat* img = &frame.image;
-  if (frame.image.type() == CV_8UC3) {
-    cv::cvtColor(frame.image, gray_, cv::COLOR_BGR2GRAY);
-    img = &gray_;
-  }
-  extractor_.extract(*img, cur_.f);
+  extract_features(frame.image, cur_.f);
   cur_.stamp_ns = frame.stamp_ns;
   cur_.reset_matches(cur_.f.count);
   refresh_snapshot();
@@ -821,7 +836,21 @@ bool Tracker::track_initializing(const Frame& frame) {
   // Two-view initialization (Sec. 3): the initializer keeps a reference frame until one
   // matches it with enough parallax; then the first two keyframes go to the mapper.
   stats_.inliers = 0;
-  const InitStatus s = initializer_.add_frame(cur_.f, frame.stamp_ns, init_result_);
+  InitStatus s = initializer_.add_frame(cur_.f, frame.stamp_ns, init_result_);
+  if (s == InitStatus::kFastMotion) {
+    // Fast motion (TrackerParams::fast_motion_levels): from now on the deeper pyramid; the
+    // reference frame and this one are described again on it and the attempt repeated.
+    RDSLAM_LOG_INFO(
+        "tracker: fast motion at initialization (median flow %.1f px): ORB pyramid "
+        "of %d levels from now on",
+        initializer_.last_attempt().median_flow_px, params_.fast_motion_levels);
+    fast_motion_ = true;
+    levels_ = params_.fast_motion_levels;
+    initializer_.set_fast_motion_check(false);
+    extract_features(ref_image_, ref_fast_);
+    extract(frame);
+    s = initializer_.retry_with_reference(ref_fast_, cur_.f, frame.stamp_ns, init_result_);
+  }
   stats_.last_init = s;
   if (initializer_.reference_stamp() == frame.stamp_ns && s != InitStatus::kOk) {
     frame.image.copyTo(ref_image_);

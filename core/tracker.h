@@ -17,7 +17,9 @@
 //
 // track() runs these steps (private members, in this order), then fills the TrackResult once:
 //   extract                  features of the frame; the newest map snapshot
-//   track_initializing       INITIALIZING: two-view initialization (core/initializer.h)
+//   track_initializing       INITIALIZING: two-view initialization (core/initializer.h); the
+//                            first attempt at fast motion switches the run to the deeper
+//                            pyramid (TrackerParams::fast_motion_levels) and is repeated on it
 //   TRACKING / RELOCALIZED, a cascade around the constant-velocity prediction (predict_pose:
 //   the last motion, scaled by the frames' stamp intervals when frames were dropped), each search
 //   tried while the previous one left fewer than `search_min_inliers` inliers (a search
@@ -170,6 +172,16 @@ struct TrackerParams {
   double rotation_max_parallax_ratio = 0.25;  // translation / depth below this x the angle
   double rotation_refresh_ratio = 0.5;        // next rotation keyframe below this of its matches
   double rotation_exit_max_shift = 0.12;      // full pose ends it within this x depth of centre
+  // Fast motion (ORB): when an initialization attempt sees a median flow of at least
+  // `init_fast_flow_frac` of the image width (kitti06 `--every 3`: 4.4%; the other scenes of
+  // the replay set start below 2.8%), the features of the rest of the run are extracted on a
+  // pyramid of this many levels (ORB-SLAM's KITTI setting, 8 x 1.2), the map being initialized
+  // starts again from that frame, and the mapper keeps the new map's points at that many
+  // levels. A camera driving forward at a low frame rate sees its points grow by 1.2-1.5x per
+  // frame: on 4 levels (scale range 1.73) they leave the pyramid within a frame or two. Not the
+  // default pyramid: 8 levels everywhere measured worse on the indoor scenes (docs/slam.md).
+  // 0 or at most features.levels: off.
+  int fast_motion_levels = 8;
   InitializerParams init;
 
   void visit(ParamVisitor& v);
@@ -212,6 +224,7 @@ class Tracker {
   // The steps of track() (see the header comment); each returns the inliers of its pose T, or
   // whether the frame's pose was found.
   void extract(const Frame& frame);
+  void extract_features(const cv::Mat& image, Features& out);  // the active pyramid
   bool track_initializing(const Frame& frame);
   bool track_with_map();
   // The constant-velocity prediction of this frame's pose (TrackerParams::prediction_max_scale).
@@ -278,6 +291,12 @@ class Tracker {
   PinholeIntrinsics K_;
   std::shared_ptr<SlamLink> link_;
   FeatureExtractor extractor_;
+  // TrackerParams::fast_motion_levels: the extractor on the deeper pyramid (null: off), used
+  // from the first fast initialization attempt on; levels_ is the active pyramid's depth.
+  std::unique_ptr<FeatureExtractor> fast_extractor_;
+  bool fast_motion_ = false;
+  int levels_ = 1;
+  Features ref_fast_;  // the initializer's reference frame on the deeper pyramid
   Initializer initializer_;
   PoseEstimator estimator_;
   RobustPoseEstimator tight_;  // the sub-motion test's estimator (gate submotion_gate_px)

@@ -2,7 +2,9 @@
 // scenes initialize (essential matrix / homography chosen by the score) with the right
 // motion and unit median depth; a static camera, a purely rotating camera and a fixed camera
 // watching a moving object are refused. The screening fit bounds the cost of a pair with
-// mostly wrong matches without changing the result on a good pair.
+// mostly wrong matches without changing the result on a good pair. At large flow, the rotation
+// consistency retry recovers a pair with many wrong matches, and the fast-motion check hands
+// such pairs back to the owner (the tracker's deeper pyramid) before any fitting.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -208,6 +210,89 @@ TEST(Initializer, ScreeningFitKeepsGoodPairsAndRefusesMostlyWrongMatches) {
   EXPECT_EQ(as.r_h, 0.0);  // refused before the homography was fitted
   EXPECT_NE(attempt(full, bad, rf, af), InitStatus::kOk);
   EXPECT_GT(af.e_inliers, 0);
+}
+
+// Rotation consistency (InitializerParams::rotation_bins): a pair at large flow with 45% wrong
+// matches (displaced by up to 60 px, keypoint angles turned at random; the right matches keep
+// their angle, a camera without roll) is refused as inconsistent without the retry; the retry
+// keeps the matches in the fullest bins of the angle-change histogram and initializes with the
+// true motion. Below `rotation_min_flow_frac` the retry does not run.
+TEST(Initializer, RotationConsistencyRetryRecoversLargeFlowPairWithWrongMatches) {
+  const Scene s = make_scene(400, false, 9);
+  const Features f0 = observe(s, Pose());
+  const Pose T1 = pose_at({0.4, 0.02, 0.05}, 0.03);
+  Features f1 = observe(s, T1);
+  std::mt19937 rng(10);
+  std::uniform_real_distribution<float> off(-60.f, 60.f), turn(20.f, 340.f);
+  for (int i = 0; i < f1.count; ++i) {
+    if (i % 20 >= 9) continue;  // 55% stay right
+    cv::Point2f& p = f1.kps[i].pt;
+    p.x = std::clamp(p.x + off(rng), 0.f, 639.f);
+    p.y = std::clamp(p.y + off(rng), 0.f, 479.f);
+    f1.un[i] = p;
+    f1.kps[i].angle = std::fmod(f0.kps[i].angle + turn(rng) + 360.f, 360.f);
+  }
+  f1.build_grid();
+  FeatureParams fp;
+  const auto attempt = [&](const InitializerParams& ip, InitResult& r, InitAttempt& a) {
+    Initializer init(ip, fp, kK, BundleAdjustmentParams{});
+    init.add_frame(f0, 0, r);
+    const InitStatus st = init.add_frame(f1, 1, r);
+    a = init.last_attempt();
+    return st;
+  };
+  InitializerParams off_params;
+  off_params.rotation_bins = 0;
+  InitResult r;
+  InitAttempt a;
+  ASSERT_EQ(attempt(off_params, r, a), InitStatus::kInconsistent);
+  EXPECT_GE(a.median_flow_px, InitializerParams{}.rotation_min_flow_frac * f0.width);
+  EXPECT_EQ(a.rotation_removed, 0);
+
+  ASSERT_EQ(attempt(InitializerParams{}, r, a), InitStatus::kOk);
+  EXPECT_GT(a.rotation_removed, 100);
+  EXPECT_GT(r.T1.centre().normalized().dot(T1.centre().normalized()), 0.995);
+  EXPECT_LT(Eigen::AngleAxisd(r.T1.R * T1.R.transpose()).angle(), 0.003);
+
+  InitializerParams high;
+  high.rotation_min_flow_frac = 0.5;  // the pair's flow is below it: no retry
+  EXPECT_EQ(attempt(high, r, a), InitStatus::kInconsistent);
+  EXPECT_EQ(a.rotation_removed, 0);
+}
+
+// Fast motion (InitializerParams::fast_flow_frac): with the check on, a pair at that median
+// flow or more is answered kFastMotion without any model fitting; the owner then repeats the
+// attempt (the reference described anew, same age) with the check off, which gives the same
+// result as a plain attempt. A pair below that flow is fitted as usual with the check on.
+TEST(Initializer, FastMotionCheckDefersLargeFlowPairsToTheOwner) {
+  const Scene s = make_scene(400, false, 11);
+  const Features f0 = observe(s, Pose());
+  const Features f1 = observe(s, pose_at({0.8, 0.02, 0.05}, 0.03));
+  FeatureParams fp;
+  const InitializerParams ip;
+  InitResult r, plain;
+  Initializer init(ip, fp, kK, BundleAdjustmentParams{});
+  init.set_fast_motion_check(true);
+  init.add_frame(f0, 0, r);
+  ASSERT_EQ(init.add_frame(f1, 1, r), InitStatus::kFastMotion);
+  EXPECT_GE(init.last_attempt().median_flow_px, ip.fast_flow_frac * f0.width);
+  EXPECT_EQ(init.last_attempt().e_inliers, 0);  // not fitted
+  init.set_fast_motion_check(false);
+  ASSERT_EQ(init.retry_with_reference(f0, f1, 1, r), InitStatus::kOk);
+  EXPECT_EQ(init.reference_age(), 1);
+  ASSERT_EQ(run(f0, f1, plain), InitStatus::kOk);
+  EXPECT_EQ(r.points.size(), plain.points.size());
+  EXPECT_TRUE(r.T1.R == plain.T1.R);
+  EXPECT_TRUE(r.T1.t == plain.T1.t);
+
+  const Features slow = observe(s, pose_at({0.15, 0.01, 0.02}, 0.01));
+  Initializer checked(ip, fp, kK, BundleAdjustmentParams{});
+  checked.set_fast_motion_check(true);
+  checked.add_frame(f0, 0, r);
+  const InitStatus st = checked.add_frame(slow, 1, r);
+  EXPECT_NE(st, InitStatus::kFastMotion);
+  EXPECT_LT(checked.last_attempt().median_flow_px, ip.fast_flow_frac * f0.width);
+  EXPECT_GT(checked.last_attempt().e_inliers, 0);  // fitted
 }
 
 }  // namespace
