@@ -81,12 +81,7 @@ std::string FeatureParams::validate() const {
   return {};
 }
 
-void Features::set_grid_extent(const CameraModel& camera) {
-  if (!camera.has_distortion()) {
-    grid_x0 = grid_y0 = grid_w = grid_h = 0.f;
-    return;
-  }
-  const cv::Rect2d e = camera.ideal_extent();
+void Features::set_grid_extent(const cv::Rect2d& e) {
   grid_x0 = static_cast<float>(std::floor(e.x));
   grid_y0 = static_cast<float>(std::floor(e.y));
   grid_w = static_cast<float>(std::ceil(e.x + e.width)) - grid_x0;
@@ -240,12 +235,7 @@ FeatureExtractor::FeatureExtractor(const FeatureParams& params, const CameraMode
       }
     }
   }
-  Features extent;
-  extent.set_grid_extent(camera_);
-  grid_x0_ = extent.grid_x0;
-  grid_y0_ = extent.grid_y0;
-  grid_w_ = extent.grid_w;
-  grid_h_ = extent.grid_h;
+  grid_extent_ = camera_.ideal_extent();
   if (params_.is_sift()) sift_ = cv::SIFT::create(params_.max_features);
 }
 
@@ -268,10 +258,7 @@ void FeatureExtractor::prepare(Features& out, int w, int h) const {
   out.height = h;
   out.count = 0;
   out.cell_px = static_cast<float>(std::max(16, params_.grid_cell_px / 2));
-  out.grid_x0 = grid_x0_;
-  out.grid_y0 = grid_y0_;
-  out.grid_w = grid_w_;
-  out.grid_h = grid_h_;
+  out.set_grid_extent(grid_extent_);
 }
 
 void FeatureExtractor::extract(const cv::Mat& gray, Features& out) {

@@ -81,9 +81,9 @@ struct Features {
   bool binary = true;
 
   // Grid over undistorted coordinates (CSR layout). It covers [grid_x0, grid_x0 + grid_w) x
-  // [grid_y0, grid_y0 + grid_h) (grid_w or grid_h <= 0: [0, width) x [0, height)); with a lens
-  // the extractor sets the camera's ideal_extent(), so features the lens shows outside the
-  // ideal rectangle are found too.
+  // [grid_y0, grid_y0 + grid_h) (grid_w or grid_h <= 0: [0, width) x [0, height)); the extractor
+  // and the map reader set the camera's ideal_extent(), so with a lens the features it shows
+  // outside the ideal rectangle are found too.
   float cell_px = 32.f;
   float grid_x0 = 0.f, grid_y0 = 0.f, grid_w = 0.f, grid_h = 0.f;
   int grid_cols = 0, grid_rows = 0;
@@ -91,8 +91,9 @@ struct Features {
   std::vector<int> cell_items;
 
   void build_grid();
-  // Sets the grid's rectangle to the camera's ideal_extent() (no effect without a lens).
-  void set_grid_extent(const CameraModel& camera);
+  // Sets the grid's rectangle to `ideal_extent` (a CameraModel::ideal_extent(), whole pixels
+  // around it; without a lens that is the image rectangle, as the default).
+  void set_grid_extent(const cv::Rect2d& ideal_extent);
   // Indices of features within `radius` pixels of (x, y) with level in [min_level, max_level];
   // writes at most `cap` indices into `out`, returns their number.
   int radius_search(float x, float y, float radius, int min_level, int max_level, int* out,
@@ -133,8 +134,8 @@ class FeatureExtractor {
   std::vector<int> rot_xy_;                // pattern rotated to each orientation bin
   std::vector<std::vector<int>> rot_off_;  // per level: rot_xy_ as pixel offsets
   std::vector<int> rot_step_;              // image step rot_off_ was built for
-  float grid_x0_ = 0.f, grid_y0_ = 0.f, grid_w_ = 0.f, grid_h_ = 0.f;  // Features' grid
-  cv::Mat undistort_map_;  // CV_32FC2 per raw pixel -> ideal pixel (empty: no distortion)
+  cv::Rect2d grid_extent_;  // camera_.ideal_extent(): the rectangle of every Features' grid
+  cv::Mat undistort_map_;   // CV_32FC2 per raw pixel -> ideal pixel (empty: no distortion)
   cv::Ptr<cv::SIFT> sift_;
   std::vector<cv::KeyPoint> sift_kps_;
   cv::Mat sift_desc_;

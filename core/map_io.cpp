@@ -202,7 +202,9 @@ void write_features(Writer& w, const Features& f, int desc_bytes) {
   for (int i = 0; i < f.count; ++i) w.bytes(f.desc_ptr(i), static_cast<size_t>(desc_bytes));
 }
 
-void read_features(Reader& r, Features& f, bool binary, int desc_bytes, const CameraModel& cam) {
+// `grid_extent` is cam.ideal_extent(), computed once per map by the caller.
+void read_features(Reader& r, Features& f, bool binary, int desc_bytes, const CameraModel& cam,
+                   const cv::Rect2d& grid_extent) {
   const int32_t count = r.pod<int32_t>("keyframe feature count");
   if (count < 0 || count > kMaxFeatures) r.fail("keyframe feature count " + std::to_string(count));
   f.count = count;
@@ -215,7 +217,7 @@ void read_features(Reader& r, Features& f, bool binary, int desc_bytes, const Ca
   }
   f.cell_px = r.pod<float>("keyframe grid cell");
   if (!(f.cell_px >= 1.f && f.cell_px <= 4096.f)) r.fail("keyframe grid cell");
-  f.set_grid_extent(cam);  // the grid covers what the lens shows (not stored: the camera's)
+  f.set_grid_extent(grid_extent);  // the grid covers what the lens shows (not stored)
   f.binary = binary;
   const size_t n = static_cast<size_t>(count);
   f.kps.resize(n);
@@ -465,6 +467,7 @@ void read_body(Reader& r, Header& h, Map* map) {
   MapInfo& mi = h.info;
   const bool binary = mi.feature_mode == "orb";
   Features scratch;
+  const cv::Rect2d grid_extent = mi.camera.ideal_extent();
   for (int64_t i = 0; i < h.n_kf; ++i) {
     const int64_t id = r.count("keyframe id", 0, h.next_kf_id - 1);
     Keyframe tmp;
@@ -478,7 +481,8 @@ void read_body(Reader& r, Header& h, Map* map) {
     k->stamp_ns = r.pod<int64_t>("keyframe stamp");
     k->T_cam_world = r.pose("keyframe pose");
     k->fixed = r.pod<uint8_t>("keyframe flag") != 0;
-    read_features(r, map ? k->features : scratch, binary, mi.descriptor_bytes, mi.camera);
+    read_features(r, map ? k->features : scratch, binary, mi.descriptor_bytes, mi.camera,
+                  grid_extent);
     const Features& f = map ? k->features : scratch;
     k->point_of.assign(static_cast<size_t>(f.count), -1);
     const int64_t png = r.count("image size", 0, int64_t(1) << 31);
