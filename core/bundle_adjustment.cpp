@@ -46,6 +46,21 @@ struct ReprojectionCost {
   double u_, v_, inv_sigma_;
 };
 
+// Ends the solve when the caller's stop predicate says so (bundle_adjust's `stop`).
+class StopCallback : public ceres::IterationCallback {
+ public:
+  explicit StopCallback(const std::function<bool()>& stop) : stop_(stop) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    if (!stop_()) return ceres::SOLVER_CONTINUE;
+    stopped = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  bool stopped = false;
+
+ private:
+  const std::function<bool()>& stop_;
+};
+
 void pose_to_params(const Pose& T, double* x) {
   Eigen::AngleAxisd aa(T.R);
   const Eigen::Vector3d w = aa.angle() * aa.axis();
@@ -76,7 +91,8 @@ void BundleAdjustmentParams::visit(ParamVisitor& v) {
 
 BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
                                     const std::vector<int>& window_kfs,
-                                    const BundleAdjustmentParams& params) {
+                                    const BundleAdjustmentParams& params,
+                                    const std::function<bool()>& stop) {
   BundleAdjustmentStats st;
   std::set<int> window(window_kfs.begin(), window_kfs.end());
   std::set<int64_t> pts;
@@ -117,7 +133,7 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
     int kf;
     int feat;
   };
-  for (int pass = 0; pass < (params.second_pass ? 2 : 1); ++pass) {
+  for (int pass = 0; pass < (params.second_pass ? 2 : 1) && !st.stopped; ++pass) {
     ceres::Problem::Options popt;
     popt.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(popt);
@@ -152,8 +168,11 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
     opt.max_num_iterations = pass == 0 ? params.iterations : params.iterations / 2 + 1;
     opt.num_threads = 1;
     opt.logging_type = ceres::SILENT;
+    StopCallback stop_cb(stop);
+    if (stop) opt.callbacks.push_back(&stop_cb);
     ceres::Solver::Summary summary;
     ceres::Solve(opt, &problem, &summary);
+    st.stopped = stop_cb.stopped;
     if (pass == 0) st.initial_cost = summary.initial_cost;
     st.final_cost = summary.final_cost;
     st.residuals = static_cast<int>(residuals.size());

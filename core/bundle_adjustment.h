@@ -7,6 +7,7 @@
 // initialization, for the two-view bundle adjustment).
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "core/geometry.h"
@@ -29,14 +30,20 @@ struct BundleAdjustmentStats {
   int keyframes = 0, fixed = 0, points = 0, residuals = 0;
   int outliers_removed = 0;
   double initial_cost = 0, final_cost = 0;
+  bool stopped = false;  // `stop` ended it early (the second pass was skipped)
 };
 
 // Optimises the keyframes in `window_kfs` (those with Keyframe::fixed stay fixed) and all
 // points they observe; other keyframes observing those points are fixed. Observations with a
 // normalised squared error above 5.991 after optimisation are removed from the map, and
 // points left with fewer than 2 observations are erased.
+// `stop` (may be empty) is asked after every Levenberg-Marquardt iteration; when it returns true
+// the solver ends there (ORB-SLAM's abort flag: the live mapper yields to a waiting keyframe),
+// the second pass is skipped, and the result so far is kept: outliers removed and written back
+// as after a full run (every accepted iteration lowers the cost).
 BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
                                     const std::vector<int>& window_kfs,
-                                    const BundleAdjustmentParams& params);
+                                    const BundleAdjustmentParams& params,
+                                    const std::function<bool()>& stop = {});
 
 }  // namespace rdslam

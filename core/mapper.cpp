@@ -29,6 +29,10 @@ void MapperParams::visit(ParamVisitor& v) {
           "recovery: Sim(3) RANSAC inliers a merge with an earlier map needs");
   v.field("merge_min_matches", merge_min_matches, 6, 10000,
           "recovery: keyframe features matched by projection a merge needs");
+  v.field("ba_yield", ba_yield,
+          "live pipeline: local BA stops (or is skipped) when another keyframe candidate waits, "
+          "so new keyframes are mapped first (ORB-SLAM's abort flag); no effect on lossless "
+          "replay, where the tracker waits for the mapper");
   PrefixVisitor ba_v(v, "ba_");
   ba.visit(ba_v);
 }
@@ -386,10 +390,25 @@ void Mapper::match_epipolar(const Keyframe& C, const Keyframe& R, const std::vec
   const Eigen::Vector3d ec = C.T_cam_world * R.T_cam_world.centre();
   const bool has_epi = ec.z() > 1e-9;
   const Eigen::Vector2d epi = has_epi ? K_.project(ec) : Eigen::Vector2d(-1e9, -1e9);
-  std::vector<int> r_free;
+  // R's free features, bucketed by the epipolar lines through R's epipole (the projection of
+  // C's centre) that pass within their band (core/epipolar_bins.h): the same matches as a scan
+  // of all of them, at a fraction of the cost.
+  r_free_.clear();
+  r_x_.clear();
+  r_y_.clear();
+  r_band_.clear();
   for (int i = 0; i < fr.count; ++i) {
-    if (R.point_of[i] < 0) r_free.push_back(i);
+    if (R.point_of[i] >= 0) continue;
+    r_free_.push_back(i);
+    r_x_.push_back(fr.un[i].x);
+    r_y_.push_back(fr.un[i].y);
+    r_band_.push_back(std::sqrt(3.84) * fr.scale[i]);
   }
+  const Eigen::Vector3d cr = R.T_cam_world * C.T_cam_world.centre();
+  const Eigen::Vector3d er(K_.fx * cr.x() + K_.cx * cr.z(), K_.fy * cr.y() + K_.cy * cr.z(),
+                           cr.z());
+  epi_bins_.build(er, r_free_.data(), r_x_.data(), r_y_.data(), r_band_.data(),
+                  static_cast<int>(r_free_.size()));
   claims_.reset(fc.count, fr.count);
   for (int j = 0; j < fc.count; ++j) {
     if (used[j]) continue;
@@ -399,13 +418,14 @@ void Mapper::match_epipolar(const Keyframe& C, const Keyframe& R, const std::vec
     const Eigen::Vector3d l = F.transpose() * Eigen::Vector3d(xj.x(), xj.y(), 1.0);
     const double ln = std::sqrt(l.x() * l.x() + l.y() * l.y());
     if (ln < 1e-12) continue;
+    int nc = 0;
+    const int* cand = epi_bins_.candidates(l, &nc);
     // Candidates of R off the epipolar line (chi2 1 DoF, 95%) or far in scale are skipped.
-    const BestTwo best = best_of(
-        fc.desc_ptr(j), fr, r_free.data(), static_cast<int>(r_free.size()), bin, [&](int i) {
-          const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
-          return e * e > 3.84 * fr.scale[i] * fr.scale[i] ||
-                 (bin && std::abs(fr.level[i] - fc.level[j]) > 2);
-        });
+    const BestTwo best = best_of(fc.desc_ptr(j), fr, cand, nc, bin, [&](int i) {
+      const double e = (l.x() * fr.un[i].x + l.y() * fr.un[i].y + l.z()) / ln;
+      return e * e > 3.84 * fr.scale[i] * fr.scale[i] ||
+             (bin && std::abs(fr.level[i] - fc.level[j]) > 2);
+    });
     if (rule.accepts(best)) claims_.offer(j, best.index, best.d1);
   }
 }
@@ -661,7 +681,17 @@ void Mapper::local_bundle_adjustment(int id) {
     if (static_cast<int>(window.size()) >= params_.ba.window) break;
     window.push_back(kid);
   }
-  bundle_adjust(map_, K_, window, params_.ba);
+  // Live pipeline (the tracker does not wait): the candidate being processed is still at the
+  // ring's front, so a second one means the tracker has moved on and needs it mapped; BA yields
+  // (the next keyframe's BA covers this window again). Lossless replay never queues a second.
+  const auto waiting = [this] { return link_->candidates.size_approx() > 1; };
+  if (params_.ba_yield && waiting()) {
+    ++stats_.ba_yielded;
+  } else if (bundle_adjust(map_, K_, window, params_.ba,
+                           params_.ba_yield ? std::function<bool()>(waiting) : nullptr)
+                 .stopped) {
+    ++stats_.ba_yielded;
+  }
   stats_.last_ba_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   for (int kid : window) {

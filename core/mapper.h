@@ -70,6 +70,7 @@
 #include <vector>
 
 #include "core/bundle_adjustment.h"
+#include "core/epipolar_bins.h"
 #include "core/features.h"
 #include "core/keyframe.h"
 #include "core/keyframe_database.h"
@@ -122,6 +123,7 @@ struct MapperParams {
   int max_epochs = 2;               // recovery: earlier maps kept frozen (0: none)
   int merge_min_inliers = 20;       // recovery: Sim(3) RANSAC inliers to merge
   int merge_min_matches = 50;       // recovery: features matched by projection to merge
+  bool ba_yield = true;             // live: local BA stops when another keyframe waits
   BundleAdjustmentParams ba;
 
   void visit(ParamVisitor& v);
@@ -132,6 +134,7 @@ struct MapperStats {
   int points_created = 0, points_culled = 0;
   int last_new_points = 0;
   double last_ba_ms = 0.0;
+  int ba_yielded = 0;  // local BAs ended early or skipped for a waiting keyframe (ba_yield)
   int snapshots = 0;
   int points_invalidated = 0, keyframes_invalidated = 0;  // Sec. 4 updating (MapUpdater)
   int observations = 0;              // frame observations run through the updater
@@ -279,6 +282,10 @@ class Mapper {
   MapperStats stats_;
   std::vector<int> cand_;
   ClaimTable claims_;  // triangulation: new keyframe feature -> related keyframe feature
+  // Epipolar search scratch (match_epipolar): R's free features and their bins.
+  EpipolarBins epi_bins_;
+  std::vector<int> r_free_;
+  std::vector<double> r_x_, r_y_, r_band_;
   std::unique_ptr<MapUpdater> updater_;
   // Place recognition (with SlamLink::vocabulary, ORB): keyframes' bag-of-words vectors, built
   // into MapSnapshot::places at each publish.

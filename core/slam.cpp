@@ -65,6 +65,13 @@ class MapperStageImpl : public MapperStage {
     }
     return true;
   }
+  std::string summary() const override {
+    const MapperStats& s = mapper_.stats();
+    char m[160];
+    std::snprintf(m, sizeof(m), "%d keyframes mapped (%d rejected), local BA yielded %d times",
+                  s.keyframes_accepted, s.keyframes_rejected, s.ba_yielded);
+    return m;
+  }
   Mapper& mapper() { return mapper_; }
 
  private:

@@ -88,6 +88,9 @@ class MapperStage {
   virtual bool final_frame_pose(const TrackResult& /*r*/, Pose* /*T_world_cam*/) const {
     return false;
   }
+  // After the last step(): one line on the work done (keyframes mapped, local BAs that
+  // yielded to a waiting keyframe); empty for stages without a map.
+  virtual std::string summary() const { return {}; }
   // Saves the map to `path` (core/map_io.h; atomic, `keep` - 1 older versions kept) from the
   // calling thread: the mapper thread, or any thread while the mapper thread is not running
   // (after the last step()). False with *message set when there is no map to save or the

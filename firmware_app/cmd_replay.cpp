@@ -321,6 +321,9 @@ int cmd_replay(int argc, char** argv) {
         static_cast<unsigned long long>(st.exposure_jumps));
   }
   std::printf("  %-26s %d points, %d keyframes\n", "map", map_points, keyframes);
+  if (realtime && !stages.mapper->summary().empty()) {
+    std::printf("  %-26s %s\n", "mapper", stages.mapper->summary().c_str());
+  }
   if (map_epochs > 1 || map_merges > 0) {
     std::printf("  %-26s %zu epochs, %d merges\n", "maps", map_epochs, map_merges);
   }

@@ -1,11 +1,15 @@
 // core/matching: the one acceptance rule of every matcher, its per-purpose parameters and their
-// validation, the one-to-one assignment, the pyramid-level prediction (issue 21).
+// validation, the one-to-one assignment, the pyramid-level prediction (issue 21); the epipolar
+// candidate bins of the mapper's new-point search (issue 23 item 7).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
+#include "core/epipolar_bins.h"
 #include "core/matching.h"
 #include "firmware_app/config.h"
 
@@ -112,6 +116,75 @@ TEST(Matching, ConfigKeysSetAndValidateEachRule) {
   }
   EXPECT_THROW(load_config("", {"matching.sift_fuse_ratio=1.5"}), ConfigError);
   EXPECT_THROW(load_config("", {"features.match_ratio=0.8"}), ConfigError);  // moved to matching
+}
+
+// EpipolarBins must return, for any line through the epipole, every feature within its band of
+// the line (a superset), in the order the features were given, so that the mapper's best-of
+// search finds what a scan of all features finds. Epipoles inside the image, outside it, far
+// away (near-parallel lines) and at infinity; bands from 0 to 10 px.
+TEST(EpipolarBins, EveryFeatureWithinItsBandIsACandidateInGivenOrder) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ux(0, 640), uy(0, 480), uband(0, 10), uang(0, 2 * M_PI);
+  const std::vector<Eigen::Vector3d> epipoles = {{320, 240, 1},  {10, 470, 1},
+                                                 {-200, 100, 1}, {900, -300, 1},
+                                                 {5e4, 2e3, 1},  {320 * 0.5, 240 * 0.5, 0.5},
+                                                 {-1e7, 3e6, 1}, {1, 0.3, 1e-14}};
+  EpipolarBins bins;
+  long checked = 0, candidates = 0, all_features = 0, brute = 0;
+  for (const auto& e : epipoles) {
+    for (int trial = 0; trial < 5; ++trial) {
+      const int n = 40 + trial * 300;
+      std::vector<int> idx(n);
+      std::vector<double> x(n), y(n), band(n);
+      for (int k = 0; k < n; ++k) {
+        idx[k] = 3 * k + 1;  // any increasing ids
+        x[k] = ux(rng);
+        y[k] = uy(rng);
+        band[k] = uband(rng);
+      }
+      bins.build(e, idx.data(), x.data(), y.data(), band.data(), n);
+      const bool finite = std::abs(e.z()) > 1e-12 * e.norm();
+      if (!finite) {
+        EXPECT_EQ(bins.bins(), 0) << "epipole at infinity: bins off";
+      }
+      const Eigen::Vector2d ep =
+          finite ? Eigen::Vector2d(e.head<2>() / e.z()) : Eigen::Vector2d(0, 0);
+      for (int q = 0; q < 400; ++q) {
+        // A line through the epipole: towards a random feature half the time (lines that hit
+        // features), at a random angle otherwise.
+        const double a =
+            q % 2 ? uang(rng)
+                  : std::atan2(y[q % n] - ep.y(), x[q % n] - ep.x()) + 1e-3 * (uband(rng) - 5);
+        const Eigen::Vector2d d(std::cos(a), std::sin(a));
+        Eigen::Vector3d l(-d.y(), d.x(), 0.0);
+        l.z() = -(l.x() * ep.x() + l.y() * ep.y());
+        l *= 0.37;  // lines come unnormalised from F^T x
+        int nc = 0;
+        const int* c = bins.candidates(l, &nc);
+        std::vector<int> got(c, c + nc);
+        EXPECT_TRUE(std::is_sorted(got.begin(), got.end()));
+        EXPECT_TRUE(std::adjacent_find(got.begin(), got.end()) == got.end()) << "no duplicates";
+        const double ln = std::hypot(l.x(), l.y());
+        for (int k = 0; k < n; ++k) {
+          const double dist = std::abs(l.x() * x[k] + l.y() * y[k] + l.z()) / ln;
+          if (finite && dist > band[k]) continue;
+          ++brute;
+          ASSERT_TRUE(std::binary_search(got.begin(), got.end(), idx[k]))
+              << "feature " << k << " at " << dist << " px of the line (band " << band[k]
+              << ") missing; epipole " << e.transpose() << ", n " << n;
+        }
+        if (finite && n >= 640) {
+          candidates += nc;
+          all_features += n;
+        }
+        ++checked;
+      }
+    }
+  }
+  // The point of the bins: far fewer candidates than features (finite epipoles, n >= 640).
+  std::printf("%ld lines, %ld features within their band; candidates %.1f%% of the features\n",
+              checked, brute, 100.0 * candidates / all_features);
+  EXPECT_LT(candidates, all_features / 5);
 }
 
 }  // namespace
