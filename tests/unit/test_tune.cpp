@@ -40,6 +40,31 @@ TEST(TuneParams, ParsesTheExampleFile) {
   EXPECT_DOUBLE_EQ(ps[2].max, 80.0);
 }
 
+// The parameter files and deliberately bad starts of docs/tune.md's studies: every shipped
+// parameter file parses, and every bad start is a configuration `rdslam config` accepts that
+// sets each key of its study's parameter file away from the built-in default.
+TEST(TuneParams, TheStudiesFilesLoadAndTheirBadStartsDifferFromTheDefaults) {
+  const std::string dir = std::string(RDSLAM_SOURCE_DIR) + "/docs/tune/";
+  EXPECT_EQ(load_tune_params(dir + "rank_study.yaml").size(), 4u);
+  const std::pair<const char*, const char*> studies[] = {
+      {"example.yaml", "bad_start.yaml"}, {"keyframes.yaml", "bad_start_keyframes.yaml"}};
+  AppConfig defaults = load_config("", {});
+  for (const auto& [params_file, start_file] : studies) {
+    SCOPED_TRACE(start_file);
+    const auto ps = load_tune_params(dir + params_file);
+    ASSERT_FALSE(ps.empty());
+    AppConfig start = load_config(dir + start_file, {});
+    const auto a = tune_start_values(defaults, ps), b = tune_start_values(start, ps);
+    ASSERT_EQ(a.size(), ps.size());
+    ASSERT_EQ(b.size(), ps.size());
+    for (size_t i = 0; i < ps.size(); ++i) {
+      EXPECT_NE(a[i], b[i]) << ps[i].name << " is not set away from its default";
+      EXPECT_GE(b[i], ps[i].min) << ps[i].name;
+      EXPECT_LE(b[i], ps[i].max) << ps[i].name;
+    }
+  }
+}
+
 TEST(TuneParams, DefaultsScaleLinearAndTypeFromTheKey) {
   const auto ps = parse_tune_params(
       "- {name: tracker.m1, min: 40, max: 200}\n- {name: dynamic.tau_c, min: 5, max: 50}\n", "t");
