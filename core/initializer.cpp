@@ -46,6 +46,9 @@ void InitializerParams::visit(ParamVisitor& v) {
   v.field("homography_ratio", homography_ratio, 0.0, 1.0,
           "R_H = S_H/(S_H+S_E) above this selects the homography");
   v.field("min_parallax_deg", min_parallax_deg, 0.0, 45.0, "parallax gate (degrees)");
+  v.field("min_parallax_px", min_parallax_px, 0.0, 200.0,
+          "parallax gate in pixels of the focal length (parallax_px / fx radians; 0: off); the "
+          "larger of this and min_parallax_deg applies");
   v.field("parallax_quantile", parallax_quantile, 0.0, 1.0,
           "quantile of triangulation angles that must pass the parallax gate");
   v.field("min_inlier_fraction", min_inlier_fraction, 0.0, 1.0,
@@ -417,9 +420,10 @@ InitStatus Initializer::evaluate_matches(const Features& cur, InitResult& out, i
   const size_t qi =
       std::min(par.size() - 1, static_cast<size_t>(params_.parallax_quantile * (par.size() - 1)));
   attempt_.parallax_deg = par[qi];
+  const double gate_deg =
+      std::max(params_.min_parallax_deg, params_.min_parallax_px / K_.fx * 180.0 / M_PI);
   const double min_parallax =
-      attempt_.low_flow ? std::max(params_.min_parallax_deg, params_.low_flow_parallax_deg)
-                        : params_.min_parallax_deg;
+      attempt_.low_flow ? std::max(gate_deg, params_.low_flow_parallax_deg) : gate_deg;
   if (par[qi] < min_parallax) return InitStatus::kLowParallax;
   if (static_cast<int>(best.idx.size()) < params_.min_points) return InitStatus::kFewPoints;
 

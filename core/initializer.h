@@ -23,9 +23,10 @@
 //  3. All motion hypotheses of the chosen model (4 from E, up to 4 from H) are triangulated;
 //     the best must triangulate clearly more points in front of both cameras than the second.
 //  4. Parallax gate: the `parallax_quantile` quantile of the triangulation angles must exceed
-//     `min_parallax_deg` (`low_flow_parallax_deg` when the pair passed the motion gate only
-//     through its floor), and at least `min_inlier_fraction` of all matches must be
-//     consistent with the rigid motion (refuses independently moving points).
+//     `min_parallax_deg` and `min_parallax_px` / fx (the larger; `low_flow_parallax_deg` when
+//     the pair passed the motion gate only through its floor, if larger still), and at least
+//     `min_inlier_fraction` of all matches must be consistent with the rigid motion (refuses
+//     independently moving points).
 //  5. Two-view bundle adjustment, then the scale is fixed by setting the median scene depth
 //     in the first camera to 1.
 //
@@ -51,7 +52,16 @@ struct InitializerParams {
   double min_median_flow_frac = 0.01;  // as a fraction of the image width (motion gate)
   double homography_ratio = 0.45;      // R_H above this selects the homography
   double min_parallax_deg = 1.0;       // parallax gate
-  double parallax_quantile = 0.5;      // which triangulation angle must exceed it (0.5: median)
+  // The same gate in pixels of the focal length (parallax_px / fx radians; 0: off); the larger
+  // of the two applies. A point triangulated from a parallax of p radians has a relative depth
+  // error of about sigma_px / (fx * p), so the pixel measure bounds the first map's depth noise
+  // whatever the lens. 11: at fx 525 (640x480) 1.20 deg; Blender static seed 3's pair at
+  // 1.06 deg (9.7 px) is refused and the next one (1.72 deg) starts a map with about half the
+  // online error (0.184 -> 0.103% of path); kitti06's first pair (1.06 deg at fx 718: 13.3 px) and
+  // synth:driving's (1.28 deg: 11.7 px) still start at frame 1 (docs/slam.md "The first map's
+  // parallax").
+  double min_parallax_px = 11.0;
+  double parallax_quantile = 0.5;  // which triangulation angle must exceed it (0.5: median)
   // Of matches, consistent with the chosen motion. 0.55: a pair dominated by a moving panel
   // (Blender dominant_object seed 2: 58% consistent) starts the map at frame 6 instead of 63;
   // rigid pairs measure 61-96% (kitti06 `--every 3` 61%), replay set results unchanged.

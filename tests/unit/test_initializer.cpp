@@ -1,7 +1,8 @@
 // core/initializer: two-view initialization on synthetic correspondences. General and planar
 // scenes initialize (essential matrix / homography chosen by the score) with the right
 // motion and unit median depth; a static camera, a purely rotating camera and a fixed camera
-// watching a moving object are refused. The screening fit bounds the cost of a pair with
+// watching a moving object are refused, as is a pair above the motion gate whose parallax is
+// below the pixel gate. The screening fit bounds the cost of a pair with
 // mostly wrong matches without changing the result on a good pair. At large flow, the rotation
 // consistency retry recovers a pair with many wrong matches, and the fast-motion check hands
 // such pairs back to the owner (the tracker's deeper pyramid) before any fitting.
@@ -140,6 +141,36 @@ TEST(Initializer, LookAtMotionWithLittleFlowInitializesOnParallax) {
   Initializer gated(ip, fp, kK, BundleAdjustmentParams{});
   gated.add_frame(f0, 0, r);
   EXPECT_EQ(gated.add_frame(observe(s, T1), 1, r), InitStatus::kLittleMotion);
+}
+
+// The parallax gate in pixels (min_parallax_px / fx radians; at this test's fx 500, the
+// default 11 px is 1.26 deg): a sideways step above the motion gate whose median parallax is
+// above min_parallax_deg (1 deg) but below 11 px is refused as low-parallax, and starts the
+// map with the pixel gate off; a longer step passes both.
+TEST(Initializer, PixelParallaxGateRefusesShortBaselineAboveTheMotionGate) {
+  const Scene s = make_scene(400, false, 7);
+  const Features f0 = observe(s, Pose());
+  const Features short_step = observe(s, pose_at({0.13, 0.0, 0.0}, 0.0));
+  FeatureParams fp;
+  InitializerParams ip;
+  ASSERT_GT(ip.min_parallax_px / kK.fx * 180.0 / M_PI, ip.min_parallax_deg);
+  InitResult r;
+  Initializer gated(ip, fp, kK, BundleAdjustmentParams{});
+  gated.add_frame(f0, 0, r);
+  EXPECT_EQ(gated.add_frame(short_step, 1, r), InitStatus::kLowParallax);
+  EXPECT_FALSE(gated.last_attempt().low_flow);  // above the motion gate: the 1-degree bar
+  const double p = gated.last_attempt().parallax_deg;
+  EXPECT_GT(p, ip.min_parallax_deg);
+  EXPECT_LT(p * M_PI / 180.0 * kK.fx, ip.min_parallax_px);
+
+  ip.min_parallax_px = 0.0;
+  Initializer degrees_only(ip, fp, kK, BundleAdjustmentParams{});
+  degrees_only.add_frame(f0, 0, r);
+  EXPECT_EQ(degrees_only.add_frame(short_step, 1, r), InitStatus::kOk);
+
+  InitResult r2;
+  EXPECT_EQ(run(f0, observe(s, pose_at({0.25, 0.0, 0.0}, 0.0)), r2), InitStatus::kOk);
+  EXPECT_GE(r2.median_parallax_deg * M_PI / 180.0 * kK.fx, InitializerParams{}.min_parallax_px);
 }
 
 TEST(Initializer, RefusesStaticCamera) {
