@@ -1,11 +1,11 @@
-// core/initializer: two-view initialization on synthetic correspondences. General and planar
-// scenes initialize (essential matrix / homography chosen by the score) with the right
-// motion and unit median depth; a static camera, a purely rotating camera and a fixed camera
-// watching a moving object are refused, as is a pair above the motion gate whose parallax is
-// below the pixel gate. The screening fit bounds the cost of a pair with
-// mostly wrong matches without changing the result on a good pair. At large flow, the rotation
-// consistency retry recovers a pair with many wrong matches, and the fast-motion check hands
-// such pairs back to the owner (the tracker's deeper pyramid) before any fitting.
+// core/initializer: two-view initialization on synthetic correspondences. General and planar scenes
+// initialize (essential matrix / homography chosen by the score) with the right motion and unit
+// median depth; a static camera, a purely rotating camera and a fixed camera watching a moving
+// object are refused, as is a pair above the motion gate whose parallax is below the pixel gate.
+// The screening fit bounds the cost of a pair with mostly wrong matches without changing the result
+// on a good pair. At large flow, the rotation consistency retry recovers a pair with many wrong
+// matches, and the fast-motion check hands such pairs back to the owner (the tracker's deeper
+// pyramid) before any fitting.
 #include <gtest/gtest.h>
 
 #include <algorithm>
