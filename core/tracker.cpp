@@ -71,9 +71,6 @@ void TrackerParams::visit(ParamVisitor& v) {
   v.field("fast_motion_levels", fast_motion_levels, 0, 8,
           "ORB pyramid levels once an initialization attempt sees fast motion "
           "(init_fast_flow_frac; 0 or <= features.levels: off)");
-  v.field("last_follows_reference", last_follows_reference,
-          "the last frame's pose moves with its reference keyframe when bundle adjustment "
-          "moves it");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -192,8 +189,7 @@ void Tracker::refresh_snapshot() {
   if (!s) return;
   if (s->epoch != epoch_) {
     if (s->merged_from < 0 || static_cast<uint32_t>(s->merged_from) != epoch_) return;
-    follow_merge(*s);      // this map was merged into an earlier one: continue in its frame
-    last_ref_kf_id_ = -1;  // keyframe ids moved with the merge
+    follow_merge(*s);  // this map was merged into an earlier one: continue in its frame
   }
   snap_ = std::move(s);  // the previous snapshot is freed by the mapper (MatchIndex::collect)
   if (static_cast<int>(row_stamp_.size()) < snap_->rows()) {
@@ -206,14 +202,6 @@ void Tracker::refresh_snapshot() {
     const int r = snap_->find(last_.pid[i]);
     last_.row[i] = r;
     if (r >= 0) last_.p[i] = snap_->p_world[r];
-  }
-  // ... and its pose, kept relative to its reference keyframe (ORB-SLAM's last-frame update).
-  if (params_.last_follows_reference && last_ref_kf_id_ >= 0 && last_ref_epoch_ == epoch_) {
-    for (size_t k = 0; k < snap_->kf_ids.size(); ++k) {
-      if (snap_->kf_ids[k] != last_ref_kf_id_) continue;
-      last_.T = last_T_cam_ref_ * snap_->kf_pose[k];
-      break;
-    }
   }
 }
 
@@ -764,9 +752,6 @@ TrackResult Tracker::track(const Frame& frame) {
   ++frame_no_;
   ++track_no_;
   wait_ms_ = 0.0;
-  last_ref_kf_id_ = ref_kf_id_;  // the last frame's (-1 unless its pose was found)
-  last_T_cam_ref_ = T_cam_ref_;
-  last_ref_epoch_ = epoch_;
   ref_kf_id_ = -1;
   extract(frame);
   bool found = false;

@@ -16,10 +16,7 @@
 // support it after refinement.
 //
 // track() runs these steps (private members, in this order), then fills the TrackResult once:
-//   extract                  features of the frame; the newest map snapshot (the previous
-//                            frame's points take their adjusted positions and, with
-//                            `last_follows_reference`, its pose moves with its reference
-//                            keyframe)
+//   extract                  features of the frame; the newest map snapshot
 //   track_initializing       INITIALIZING: two-view initialization (core/initializer.h); the
 //                            first attempt at fast motion switches the run to the deeper
 //                            pyramid (TrackerParams::fast_motion_levels) and is repeated on it
@@ -150,9 +147,6 @@ struct TrackerParams {
   // replay faster than real time maps like an offline run. Off for live cameras: then the
   // mapper never blocks the tracker for more than the index pointer swap.
   bool sync_mapper = false;
-  // After the mapper's bundle adjustment moved the last frame's reference keyframe, the last
-  // frame's pose follows it (kept relative to it), as its points follow their refined positions.
-  bool last_follows_reference = true;
   // Sec. 3/5: robust pose (PARSAC, `parsac.method`) on the frame's 2D-3D matches before the
   // eq. (1) refinement; false: refinement from the motion-model prediction only.
   bool robust_per_frame = true;
@@ -362,11 +356,8 @@ class Tracker {
   std::vector<float> level_scale_;
   TrackerStats stats_;
   int ref_kf_shared_ = 0, ref_kf_points_ = 0;
-  int ref_kf_id_ = -1;       // this frame's reference keyframe (TrackResult::ref_keyframe)
-  Pose T_cam_ref_;           // this frame's pose relative to it
-  int last_ref_kf_id_ = -1;  // the last frame's reference keyframe (-1: none) and pose to it
-  uint32_t last_ref_epoch_ = 0;
-  Pose last_T_cam_ref_;
+  int ref_kf_id_ = -1;    // this frame's reference keyframe (TrackResult::ref_keyframe)
+  Pose T_cam_ref_;        // this frame's pose relative to it
   double wait_ms_ = 0.0;  // this frame's time in wait_for_mapper() (reported, not tracking)
   // Debug output only (set_debug_sink): per feature of this frame, the DebugFeatureKind of
   // an estimator rejection (sized only when a sink is set).

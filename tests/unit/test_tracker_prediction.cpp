@@ -39,38 +39,16 @@ bool tracked(TrackingState s) {
   return s == TrackingState::kTracking || s == TrackingState::kRelocalized;
 }
 
-// The real tracker and mapper of one offline run on a synthetic scene (as run_offline).
-struct OfflineRun {
-  OfflineRun(const char* scene, int frames, const SlamParams& params)
-      : p(params),
-        src(open_synth_source(scene, options, frames)),
-        cam(*src->camera()),
-        link(make_slam_link(p, 2)),
-        tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
-                p.mapper.max_keyframes),
-        mapper(p.mapper, p.features, cam, link) {
-    mapper.set_change_detection(p.dynamic);
-  }
-  TrackResult track(const Frame& frame) {
-    const TrackResult r = tracker.track(frame);
-    while (mapper.step(0)) {
-    }
-    return r;
-  }
-  SlamParams p;
-  SourceOptions options;
-  std::unique_ptr<FrameSource> src;
-  CameraModel cam;
-  std::shared_ptr<SlamLink> link;
-  Tracker tracker;
-  Mapper mapper;
-};
-
 GapStats run(bool recorded_stamps) {
+  SourceOptions so;
+  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", so, kFrames);
+  const CameraModel cam = *src->camera();
   SlamParams p;  // defaults: ORB, PARSAC per frame
-  OfflineRun run("static_xyz", kFrames, p);
-  FrameSource* src = run.src.get();
-  Tracker& tracker = run.tracker;
+  auto link = make_slam_link(p, 2);
+  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
+                  p.mapper.max_keyframes);
+  Mapper mapper(p.mapper, p.features, cam, link);
+  mapper.set_change_detection(p.dynamic);
 
   GapStats g;
   Frame frame;
@@ -92,7 +70,9 @@ GapStats run(bool recorded_stamps) {
     // Per-frame view: one period per fed frame, whatever was dropped in between.
     if (!recorded_stamps) frame.stamp_ns = static_cast<int64_t>(fed) * period;
     ++fed;
-    const TrackResult r = run.track(frame);
+    const TrackResult r = tracker.track(frame);
+    while (mapper.step(0)) {
+    }
     const bool ok = tracked(r.state);
     if (i > kDropFrom) {
       ++g.fed_after_drops;
@@ -141,51 +121,6 @@ TEST(TrackerPrediction, ScalesTheLastMotionByTheStampIntervalAfterDroppedFrames)
   ASSERT_GT(timed.gap_frames, 15);
   ASSERT_GT(per_frame.gap_frames, 15);
   EXPECT_LT(timed.rel_err, 0.5 * per_frame.rel_err);
-}
-
-// The last frame follows its reference keyframe (TrackerParams::last_follows_reference): when
-// the mapper's bundle adjustment moves the keyframes between two frames, the last frame's points
-// are refreshed from the new snapshot, and its pose moves with its reference keyframe, so the
-// motion model predicts the next pose in the adjusted map. On `driving` (10 Hz, 1-2 m per
-// frame: local BA moves the young map's keyframes by centimetres) the prediction must land
-// closer to the pose the frame is then tracked at.
-struct FollowStats {
-  int frames = 0;         // tracked frames with a prediction, from the second keyframe on
-  double mean_err = 0.0;  // mean |predicted centre - tracked centre| (map units)
-};
-
-FollowStats run_follow(bool follow) {
-  SlamParams p;
-  p.tracker.last_follows_reference = follow;
-  OfflineRun run("driving", 80, p);
-  FollowStats s;
-  double sum = 0.0;
-  bool prev_ok = false;
-  Frame frame;
-  while (run.src->read(frame, 1000) == SourceStatus::kOk) {
-    const TrackResult r = run.track(frame);
-    const bool ok = r.state == TrackingState::kTracking;
-    if (ok && prev_ok) {
-      Pose Twc;
-      Twc.R = r.q_world_cam.toRotationMatrix();
-      Twc.t = r.p_world_cam;
-      sum += (run.tracker.stats().predicted.centre() - Twc.t).norm();
-      ++s.frames;
-    }
-    prev_ok = ok;
-  }
-  if (s.frames > 0) s.mean_err = sum / s.frames;
-  return s;
-}
-
-TEST(TrackerPrediction, LastFramePoseFollowsItsReferenceKeyframeAfterBundleAdjustment) {
-  const FollowStats on = run_follow(true);
-  const FollowStats off = run_follow(false);
-  std::printf("driving: mean prediction error %.4f (follow, %d frames), %.4f (not, %d frames)\n",
-              on.mean_err, on.frames, off.mean_err, off.frames);
-  ASSERT_GT(on.frames, 60);
-  ASSERT_GT(off.frames, 60);
-  EXPECT_LT(on.mean_err, 0.9 * off.mean_err);
 }
 
 }  // namespace
