@@ -8,16 +8,21 @@
 # compares every trajectory byte for byte with REF/<name>.tum and exits 1 when any differs (a
 # refactoring must not change them, or the change is stated with its measured effect).
 #
-# A measurement, not a CI test (about 7 minutes on 2 cores).
+# A measurement, not a CI test (about 7 minutes on 2 cores at one seed).
 #
-# Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-B DIR] [-t] OUT_DIR [-- extra args]
+# Usage: tests/replay/replay_set.sh [-b RDSLAM] [-c REF_DIR] [-j JOBS] [-B DIR] [-s SEEDS] [-t] OUT_DIR [-- extra args]
 #   -t  only print the table (and compare) of the runs already in OUT_DIR
 #   -B  also replay every rendered Blender sequence DIR/NAME (a TUM folder with rgb.txt, made
 #       by tools/blender/render.sh; kept outside the repository) as blender_NAME
+#   -s  replay every sequence once per PARSAC seed in the quoted list (e.g. -s "1 2 3"), as
+#       NAME__pN with --set parsac.seed=N; tests/replay/family_summary.py OUT [BASE] then gives
+#       each sequence's mean and worst over the seeds and the ratios against a BASE run
+#   KITTI 06 is also replayed with --every 2 and --every 3 (kitti06_every2, kitti06_every3).
 set -euo pipefail
 repo="$(cd "$(dirname "$0")/../.." && pwd)"
 rdslam="$repo/build/firmware_app/rdslam"
 ref=""
+seeds=""
 jobs=2
 table_only=0
 blender=""
@@ -28,7 +33,8 @@ while [[ $# -gt 0 ]]; do
     -j) jobs="$2"; shift 2 ;;
     -t) table_only=1; shift ;;
     -B) blender="$2"; shift 2 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    -s) seeds="$2"; shift 2 ;;
+    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
     --) shift; break ;;
     -*) echo "replay_set: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
@@ -49,7 +55,8 @@ for s in walking_xyz_radtan walking_xyz_fisheye dim dim_dark; do  # issue 23: le
 done
 kitti="$repo/../shared/data/kitti06_excerpt"
 if [[ -d "$kitti" ]]; then
-  sources+=("kitti06=kitti:$kitti")
+  sources+=("kitti06=kitti:$kitti" "kitti06_every2=kitti:$kitti|--every 2"
+            "kitti06_every3=kitti:$kitti|--every 3")
 else
   echo "replay_set: $kitti not found: kitti06 skipped" >&2
 fi
@@ -59,10 +66,26 @@ if [[ -n "$blender" ]]; then  # issue 22: the second, independent renderer
     [[ -f "$d/rgb.txt" ]] && sources+=("blender_$(basename "$d")=tum:${d%/}")
   done
 fi
-run_one() {  # name=uri
-  local name=${1%%=*} uri=${1#*=}
+if [[ -n "$seeds" ]]; then  # one run per PARSAC seed: NAME__pN
+  for x in $seeds; do
+    [[ "$x" =~ ^[0-9]+$ ]] || { echo "replay_set: -s: '$x' is not a seed (non-negative integer)" >&2; exit 2; }
+  done
+  per_seed=()
+  for s in "${sources[@]}"; do
+    name=${s%%=*} rest=${s#*=}
+    uri=${rest%%|*} extra=""
+    [[ "$rest" == *"|"* ]] && extra=${rest#*|}
+    for x in $seeds; do per_seed+=("${name}__p$x=$uri|${extra:+$extra }--set parsac.seed=$x"); done
+  done
+  sources=("${per_seed[@]}")
+fi
+run_one() {  # name=uri[|replay args]
+  local name=${1%%=*} rest=${1#*=} uri extra=()
+  uri=${rest%%|*}
+  # shellcheck disable=SC2206
+  [[ "$rest" == *"|"* ]] && extra=(${rest#*|})
   shift
-  "$rdslam" replay "$uri" --trajectory "$out/$name.tum" --report "$out/$name.json" "$@" \
+  "$rdslam" replay "$uri" "${extra[@]}" --trajectory "$out/$name.tum" --report "$out/$name.json" "$@" \
     > "$out/$name.log" 2>&1 || { echo "replay_set: $name failed (see $out/$name.log)" >&2; return 1; }
 }
 export -f run_one
