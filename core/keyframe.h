@@ -30,6 +30,7 @@ struct KeyframeCandidate {
   Kind kind = Kind::kKeyframe;
   uint32_t epoch = 0;  // map epoch (a new one at each reset; an earlier one after a merge)
   int64_t stamp_ns = 0;
+  int64_t frame_no = 0;  // the tracker's frame counter at this frame (kInit: the second frame)
   Pose T_cam_world;
   Features features;
   std::vector<int64_t> point_of;  // per feature: tracked map point id or -1

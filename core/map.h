@@ -44,6 +44,7 @@ struct MapPoint {
 struct Keyframe {
   int id = -1;
   int64_t stamp_ns = 0;
+  int64_t frame_no = 0;  // the tracker's frame counter (KeyframeCandidate::frame_no)
   Pose T_cam_world;
   Features features;
   std::vector<int64_t> point_of;  // per feature: map point id or -1

@@ -29,6 +29,12 @@ void MapperParams::visit(ParamVisitor& v) {
           "recovery: Sim(3) RANSAC inliers a merge with an earlier map needs");
   v.field("merge_min_matches", merge_min_matches, 6, 10000,
           "recovery: keyframe features matched by projection a merge needs");
+  v.field("ba_young_keyframes", ba_young_keyframes, 0, 100000,
+          "a map with fewer keyframes is young for the local BA window (0: never)");
+  v.field("ba_young_window", ba_young_window, 2, 1000,
+          "young map: keyframes in the local BA window (at most ba.window)");
+  v.field("ba_young_span_frames", ba_young_span_frames, 0, 100000,
+          "young map: the window grows (up to ba.window) while it spans fewer tracker frames");
   v.field("ba_yield", ba_yield,
           "live pipeline: local BA stops (or is skipped) when another keyframe candidate waits, "
           "so new keyframes are mapped first (ORB-SLAM's abort flag); no effect on lossless "
@@ -280,12 +286,14 @@ void Mapper::handle_init(const KeyframeCandidate& c) {
   k0.id = 0;
   k0.fixed = true;
   k0.stamp_ns = c.stamp0_ns;
+  k0.frame_no = c.frame_no;  // (its own frame is earlier; not needed: it is the fixed gauge)
   k0.features.copy_from(c.features0);
   k0.point_of.assign(c.features0.count, -1);
   c.image0.copyTo(k0.image);
   Keyframe& k1 = map_.keyframes[1];
   k1.id = 1;
   k1.stamp_ns = c.stamp_ns;
+  k1.frame_no = c.frame_no;
   k1.T_cam_world = c.T_cam_world;
   k1.features.copy_from(c.features);
   k1.point_of.assign(c.features.count, -1);
@@ -606,6 +614,7 @@ int Mapper::insert_keyframe(const KeyframeCandidate& c) {
   Keyframe& kf = map_.keyframes[id];
   kf.id = id;
   kf.stamp_ns = c.stamp_ns;
+  kf.frame_no = c.frame_no;
   kf.T_cam_world = c.T_cam_world;
   kf.features.copy_from(c.features);
   kf.point_of.assign(c.features.count, -1);
@@ -677,13 +686,25 @@ void Mapper::local_bundle_adjustment(int id) {
   // ba.window in all; then the geometry of the points they see.
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<int> window{id};
+  const int cap = params_.ba.window;
+  const bool young = static_cast<int>(map_.keyframes.size()) < params_.ba_young_keyframes;
+  const int base = young ? std::min(cap, params_.ba_young_window) : cap;
+  const Keyframe* nk = map_.keyframe(id);
+  int64_t lo = nk ? nk->frame_no : 0, hi = lo;
   for (const auto& [n, kid] : map_.covisible(id)) {
-    if (static_cast<int>(window.size()) >= params_.ba.window) break;
+    const int size = static_cast<int>(window.size());
+    if (size >= cap) break;
+    if (size >= base && hi - lo >= params_.ba_young_span_frames) break;
     window.push_back(kid);
+    if (const Keyframe* k = map_.keyframe(kid)) {
+      lo = std::min(lo, k->frame_no);
+      hi = std::max(hi, k->frame_no);
+    }
   }
   // Live pipeline (the tracker does not wait): the candidate being processed is still at the
   // ring's front, so a second one means the tracker has moved on and needs it mapped; BA yields
   // (the next keyframe's BA covers this window again). Lossless replay never queues a second.
+  stats_.last_ba_window = static_cast<int>(window.size());
   const auto waiting = [this] { return link_->candidates.size_approx() > 1; };
   if (params_.ba_yield && waiting()) {
     ++stats_.ba_yielded;

@@ -24,7 +24,9 @@
 //     (core/keyframe_database.h), which each publish copies into the snapshot when keyframes
 //     changed (removed keyframes leave it there);
 //  7. local bundle adjustment (core/bundle_adjustment.h): the new keyframe and its most
-//     covisible keyframes, `ba.window` keyframes in all;
+//     covisible keyframes, `ba.window` keyframes in all; while the map is young (fewer than
+//     `ba_young_keyframes`), `ba_young_window` of them, grown back towards `ba.window` while
+//     they span fewer than `ba_young_span_frames` tracker frames (fast motion);
 //  8. culling (bounded map), then publish.
 // In localization-only mode (SlamLink::localize_only) candidates and observations are taken
 // off their rings and ignored: the map stays as it is.
@@ -124,6 +126,12 @@ struct MapperParams {
   int merge_min_inliers = 20;       // recovery: Sim(3) RANSAC inliers to merge
   int merge_min_matches = 50;       // recovery: features matched by projection to merge
   bool ba_yield = true;             // live: local BA stops when another keyframe waits
+  // Young map (fewer than ba_young_keyframes keyframes): the local BA window is
+  // ba_young_window keyframes, extended (up to ba.window) while its keyframes span fewer than
+  // ba_young_span_frames tracker frames (fast motion, nearly every frame a keyframe).
+  int ba_young_keyframes = 20;
+  int ba_young_window = 6;
+  int ba_young_span_frames = 15;
   BundleAdjustmentParams ba;
 
   void visit(ParamVisitor& v);
@@ -134,7 +142,8 @@ struct MapperStats {
   int points_created = 0, points_culled = 0;
   int last_new_points = 0;
   double last_ba_ms = 0.0;
-  int ba_yielded = 0;  // local BAs ended early or skipped for a waiting keyframe (ba_yield)
+  int last_ba_window = 0;  // keyframes in the last local BA's window (the new one included)
+  int ba_yielded = 0;      // local BAs ended early or skipped for a waiting keyframe (ba_yield)
   int snapshots = 0;
   int points_invalidated = 0, keyframes_invalidated = 0;  // Sec. 4 updating (MapUpdater)
   int observations = 0;              // frame observations run through the updater

@@ -543,6 +543,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   slot->epoch = epoch_;
   slot->levels = levels_;
   slot->stamp_ns = frame.stamp_ns;
+  slot->frame_no = track_no_;
   slot->T_cam_world = init.T1;
   slot->features.copy_from(cur_.f);
   slot->point_of.assign(cur_.f.count, -1);
@@ -633,6 +634,7 @@ void Tracker::maybe_send_keyframe(const Frame& frame) {
   slot->kind = KeyframeCandidate::Kind::kKeyframe;
   slot->epoch = epoch_;
   slot->stamp_ns = frame.stamp_ns;
+  slot->frame_no = track_no_;
   slot->T_cam_world = cur_.T;
   slot->features.copy_from(cur_.f);
   slot->point_of.resize(cur_.f.count);

@@ -1,0 +1,102 @@
+// The local bundle adjustment's window while the map is young (core/mapper.h,
+// MapperParams::ba_young_*): a young map's keyframes are adjusted in a window of
+// ba_young_window keyframes, so that the older keyframes that see the window's points stay
+// fixed and hold its scale; the window grows back towards ba.window while its keyframes span
+// fewer than ba_young_span_frames tracker frames (fast motion: nearly every frame a keyframe).
+//
+// The real tracker and mapper run alternately in this thread (as run_offline); after each
+// keyframe the mapper reports the window of its local BA (MapperStats::last_ba_window).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/mapper.h"
+#include "core/slam.h"
+#include "core/tracker.h"
+#include "drivers/synth_source.h"
+
+namespace rdslam {
+namespace {
+
+struct Window {
+  int keyframes = 0;  // map keyframes when the BA ran
+  int window = 0;
+};
+
+std::vector<Window> windows(const std::string& scene, int frames, const SlamParams& p) {
+  SourceOptions options;
+  std::unique_ptr<FrameSource> src = open_synth_source(scene, options, frames);
+  const CameraModel cam = *src->camera();
+  auto link = make_slam_link(p, 2);
+  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
+                  p.mapper.max_keyframes);
+  Mapper mapper(p.mapper, p.features, cam, link);
+  mapper.set_change_detection(p.dynamic);
+  std::vector<Window> out;
+  int accepted = 0;
+  Frame frame;
+  while (src->read(frame, 1000) == SourceStatus::kOk) {
+    tracker.track(frame);
+    while (mapper.step(0)) {
+      const MapperStats& s = mapper.stats();
+      if (s.keyframes_accepted > accepted && accepted >= 2) {
+        out.push_back({link->keyframes.load(), s.last_ba_window});
+      }
+      accepted = s.keyframes_accepted;
+    }
+  }
+  std::printf("%s, young below %d keyframes: window/keyframes", scene.c_str(),
+              p.mapper.ba_young_keyframes);
+  for (const Window& x : out) std::printf(" %d/%d", x.window, x.keyframes);
+  std::printf("\n");
+  return out;
+}
+
+int young_max(const std::vector<Window>& w, int young_below) {
+  int m = 0;
+  for (const Window& x : w) {
+    if (x.keyframes < young_below) m = std::max(m, x.window);
+  }
+  return m;
+}
+
+TEST(MapperBaWindow, YoungWindowAtThirtyFramesPerSecondGrowsUnderFastMotion) {
+  const SlamParams p;
+  // Keyframes five frames apart: six of them span 25 frames, past the 15-frame bound. (This
+  // room's map stays below 20 keyframes: young for the whole run.)
+  const std::vector<Window> room = windows("static_xyz", 200, p);
+  ASSERT_GT(room.size(), 15u);
+  EXPECT_EQ(young_max(room, p.mapper.ba_young_keyframes), p.mapper.ba_young_window);
+  // At 10 Hz and 1-2 m per frame nearly every frame is a keyframe: six keyframes span about
+  // six frames, so the window grows.
+  const std::vector<Window> road = windows("driving", 80, p);
+  ASSERT_GT(road.size(), 10u);
+  EXPECT_GT(young_max(road, p.mapper.ba_young_keyframes), p.mapper.ba_young_window);
+}
+
+TEST(MapperBaWindow, GrownMapAdjustsTheFullWindow) {
+  SlamParams p;
+  p.mapper.ba_young_keyframes = 8;
+  const std::vector<Window> w = windows("static_xyz", 200, p);
+  int grown = 0;
+  for (const Window& x : w) {
+    if (x.keyframes >= 8) grown = std::max(grown, x.window);
+  }
+  EXPECT_GT(grown, p.mapper.ba_young_window);
+  EXPECT_LE(grown, p.mapper.ba.window);
+}
+
+TEST(MapperBaWindow, OffAdjustsTheFullWindowFromTheStart) {
+  SlamParams p;
+  p.mapper.ba_young_keyframes = 0;
+  const std::vector<Window> w = windows("static_xyz", 120, p);
+  ASSERT_GT(w.size(), 8u);
+  EXPECT_GT(young_max(w, 20), p.mapper.ba_young_window);
+}
+
+}  // namespace
+}  // namespace rdslam
