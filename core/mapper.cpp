@@ -701,10 +701,10 @@ void Mapper::local_bundle_adjustment(int id) {
       hi = std::max(hi, k->frame_no);
     }
   }
+  stats_.last_ba_window = static_cast<int>(window.size());
   // Live pipeline (the tracker does not wait): the candidate being processed is still at the
   // ring's front, so a second one means the tracker has moved on and needs it mapped; BA yields
   // (the next keyframe's BA covers this window again). Lossless replay never queues a second.
-  stats_.last_ba_window = static_cast<int>(window.size());
   const auto waiting = [this] { return link_->candidates.size_approx() > 1; };
   if (params_.ba_yield && waiting()) {
     ++stats_.ba_yielded;
