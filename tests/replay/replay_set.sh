@@ -72,10 +72,9 @@ if [[ -n "$seeds" ]]; then  # one run per PARSAC seed: NAME__pN
   done
   per_seed=()
   for s in "${sources[@]}"; do
-    name=${s%%=*} rest=${s#*=}
-    uri=${rest%%|*} extra=""
-    [[ "$rest" == *"|"* ]] && extra=${rest#*|}
-    for x in $seeds; do per_seed+=("${name}__p$x=$uri|${extra:+$extra }--set parsac.seed=$x"); done
+    sep="|"  # the seed joins the entry's replay arguments (run_one below splits them off)
+    [[ "$s" == *"|"* ]] && sep=" "
+    for x in $seeds; do per_seed+=("${s%%=*}__p$x=${s#*=}$sep--set parsac.seed=$x"); done
   done
   sources=("${per_seed[@]}")
 fi
