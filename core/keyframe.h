@@ -38,6 +38,7 @@ struct KeyframeCandidate {
   // kInit only: the reference frame and the initial points (ids 0..n-1).
   Features features0;
   int64_t stamp0_ns = 0;
+  int64_t frame_no0 = 0;  // the reference frame's counter
   cv::Mat image0;
   std::vector<InitPoint, Eigen::aligned_allocator<InitPoint>> init_points;
   int levels = 0;  // kInit: pyramid levels of the new map's features (0: features.levels)

@@ -286,9 +286,7 @@ void Mapper::handle_init(const KeyframeCandidate& c) {
   k0.id = 0;
   k0.fixed = true;
   k0.stamp_ns = c.stamp0_ns;
-  // The second frame's counter (the candidate has no other): a young BA window that includes
-  // this keyframe is counted a few frames short (local_bundle_adjustment).
-  k0.frame_no = c.frame_no;
+  k0.frame_no = c.frame_no0;
   k0.features.copy_from(c.features0);
   k0.point_of.assign(c.features0.count, -1);
   c.image0.copyTo(k0.image);

@@ -549,6 +549,7 @@ void Tracker::start_from_init(const InitResult& init, const Frame& frame) {
   slot->point_of.assign(cur_.f.count, -1);
   slot->features0.copy_from(*init.reference);
   slot->stamp0_ns = init.reference_stamp_ns;
+  slot->frame_no0 = track_no_ - initializer_.reference_age();
   ref_image_.copyTo(slot->image0);
   frame.image.copyTo(slot->image);
   slot->init_points = init.points;

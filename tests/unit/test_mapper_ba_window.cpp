@@ -5,7 +5,8 @@
 // fewer than ba_young_span_frames tracker frames (fast motion: nearly every frame a keyframe).
 //
 // The real tracker and mapper run alternately in this thread (as run_offline); after each
-// keyframe the mapper reports the window of its local BA (MapperStats::last_ba_window).
+// keyframe the mapper reports the window of its local BA (MapperStats::last_ba_window). The
+// first two keyframes carry their own frame counters (the span the window counts).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -96,6 +97,38 @@ TEST(MapperBaWindow, OffAdjustsTheFullWindowFromTheStart) {
   const std::vector<Window> w = windows("static_xyz", 120, p);
   ASSERT_GT(w.size(), 8u);
   EXPECT_GT(young_max(w, 20), p.mapper.ba_young_window);
+}
+
+// The first map's two keyframes carry their own frames' counters: the reference frame's and the
+// second frame's, as many frames apart as their stamps (the span a young window counts).
+TEST(MapperBaWindow, FirstKeyframesCarryTheirOwnFrameCounters) {
+  const SlamParams p;
+  SourceOptions options;
+  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", options, 40);
+  const CameraModel cam = *src->camera();
+  auto link = make_slam_link(p, 2);
+  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
+                  p.mapper.max_keyframes);
+  Mapper mapper(p.mapper, p.features, cam, link);
+  Frame frame;
+  int64_t first_stamp = -1, period = 0;
+  while (mapper.map().keyframes.size() < 2 && src->read(frame, 1000) == SourceStatus::kOk) {
+    if (first_stamp < 0) {
+      first_stamp = frame.stamp_ns;
+    } else if (period == 0) {
+      period = frame.stamp_ns - first_stamp;
+    }
+    tracker.track(frame);
+    while (mapper.step(0)) {
+    }
+  }
+  ASSERT_GE(mapper.map().keyframes.size(), 2u);
+  ASSERT_GT(period, 0);
+  const Keyframe& k0 = mapper.map().keyframes.at(0);
+  const Keyframe& k1 = mapper.map().keyframes.at(1);
+  EXPECT_GT(k1.stamp_ns, k0.stamp_ns);
+  EXPECT_EQ(k1.frame_no - k0.frame_no, (k1.stamp_ns - k0.stamp_ns) / period);
+  EXPECT_EQ(k0.frame_no, 1 + (k0.stamp_ns - first_stamp) / period) << "the tracker counts from 1";
 }
 
 }  // namespace
