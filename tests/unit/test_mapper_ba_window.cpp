@@ -28,15 +28,35 @@ struct Window {
   int window = 0;
 };
 
-std::vector<Window> windows(const std::string& scene, int frames, const SlamParams& p) {
+std::unique_ptr<FrameSource> open_scene(const std::string& scene, int frames) {
   SourceOptions options;
-  std::unique_ptr<FrameSource> src = open_synth_source(scene, options, frames);
-  const CameraModel cam = *src->camera();
-  auto link = make_slam_link(p, 2);
-  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
-                  p.mapper.max_keyframes);
-  Mapper mapper(p.mapper, p.features, cam, link);
-  mapper.set_change_detection(p.dynamic);
+  return open_synth_source(scene, options, frames);
+}
+
+// A synthetic scene through the real tracker and mapper, driven by the test.
+struct Loop {
+  Loop(const std::string& scene, int frames, const SlamParams& p)
+      : src(open_scene(scene, frames)),
+        cam(*src->camera()),
+        link(make_slam_link(p, 2)),
+        tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
+                p.mapper.max_keyframes),
+        mapper(p.mapper, p.features, cam, link) {
+    mapper.set_change_detection(p.dynamic);
+  }
+  std::unique_ptr<FrameSource> src;
+  CameraModel cam;
+  std::shared_ptr<SlamLink> link;
+  Tracker tracker;
+  Mapper mapper;
+};
+
+std::vector<Window> windows(const std::string& scene, int frames, const SlamParams& p) {
+  Loop loop(scene, frames, p);
+  FrameSource* src = loop.src.get();
+  Tracker& tracker = loop.tracker;
+  Mapper& mapper = loop.mapper;
+  const std::shared_ptr<SlamLink>& link = loop.link;
   std::vector<Window> out;
   int accepted = 0;
   Frame frame;
@@ -102,23 +122,17 @@ TEST(MapperBaWindow, OffAdjustsTheFullWindowFromTheStart) {
 // The first map's two keyframes carry their own frames' counters: the reference frame's and the
 // second frame's, as many frames apart as their stamps (the span a young window counts).
 TEST(MapperBaWindow, FirstKeyframesCarryTheirOwnFrameCounters) {
-  const SlamParams p;
-  SourceOptions options;
-  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", options, 40);
-  const CameraModel cam = *src->camera();
-  auto link = make_slam_link(p, 2);
-  Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
-                  p.mapper.max_keyframes);
-  Mapper mapper(p.mapper, p.features, cam, link);
+  Loop loop("static_xyz", 40, SlamParams{});
+  Mapper& mapper = loop.mapper;
   Frame frame;
   int64_t first_stamp = -1, period = 0;
-  while (mapper.map().keyframes.size() < 2 && src->read(frame, 1000) == SourceStatus::kOk) {
+  while (mapper.map().keyframes.size() < 2 && loop.src->read(frame, 1000) == SourceStatus::kOk) {
     if (first_stamp < 0) {
       first_stamp = frame.stamp_ns;
     } else if (period == 0) {
       period = frame.stamp_ns - first_stamp;
     }
-    tracker.track(frame);
+    loop.tracker.track(frame);
     while (mapper.step(0)) {
     }
   }
