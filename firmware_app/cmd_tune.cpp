@@ -356,7 +356,9 @@ int cmd_tune(int argc, char** argv) {
            "including the start configuration (default 24)");
   p.option("--objective", &objective_text, "ate|consistency",
            "ate: ATE % of path (needs ground truth); consistency: online vs final trajectory "
-           "agreement plus path roughness, no ground truth (default ate; docs/tune.md)");
+           "agreement plus path roughness plus disagreement with the other configurations that "
+           "track the "
+           "sequence, no ground truth (default ate; docs/tune.md)");
   p.repeated("--holdout", &holdout, "H1 [H2 ...]",
              "sequences never used in the search: the defaults, the start and the best "
              "configuration are compared on them");
@@ -426,6 +428,13 @@ int cmd_tune(int argc, char** argv) {
   Runner runner;
   runner.exe = self_exe();
   runner.runs_dir = fs::path(out_dir) / "runs";
+  setup.online_trajectory = [dir = runner.runs_dir](const std::string& key) {
+    try {
+      return read_trajectory((dir / key / "online.tum").string(), TrajectoryFormat::kTum);
+    } catch (const std::exception&) {
+      return Trajectory{};  // never tracked, or the run's files are gone: no trajectory
+    }
+  };
   runner.config_path = config_path.empty() ? "" : fs::absolute(config_path).string();
   runner.base_sets = base_sets;
   runner.jobs = n_jobs;
@@ -469,24 +478,28 @@ int cmd_tune(int argc, char** argv) {
   });
   std::printf("\nrdslam tune: %d configurations, %d replays (%d from results.jsonl), %.0f s\n",
               static_cast<int>(out.candidates.size()), out.runs_total, out.runs_resumed, wall);
+  const bool show_x = setup.objective == TuneObjective::kConsistency;
   std::printf("%-4s %-5s %-5s %-10s %-10s", "rank", "id", "rung", to_string(setup.objective),
               "ate_pct");
+  if (show_x) std::printf(" %-10s", "disagree%");
   for (const auto& prm : setup.params) std::printf(" %s", prm.name.c_str());
   std::printf("\n");
   for (size_t k = 0; k < rank.size(); ++k) {
     const auto& c = out.candidates[rank[k]];
-    std::optional<double> ate;  // mean ATE over the sequences when every one has it
-    double sum = 0;
-    bool all = !c.results.empty();
-    for (const auto& r : c.results) {
-      if (r.ate_pct)
-        sum += *r.ate_pct;
-      else
-        all = false;
-    }
-    if (all) ate = sum / static_cast<double>(c.results.size());
+    // Mean of a field over the sequences when every one has it.
+    const auto mean_of = [&c](std::optional<double> SeqResult::*field) -> std::optional<double> {
+      double sum = 0;
+      for (const auto& r : c.results) {
+        if (!(r.*field)) return std::nullopt;
+        sum += *(r.*field);
+      }
+      if (c.results.empty()) return std::nullopt;
+      return sum / static_cast<double>(c.results.size());
+    };
     std::printf("%-4zu %-5d %-5d %-10.4f %-10s", k + 1, c.candidate.id, c.rung + 1, c.objective,
-                fmt_opt(ate, "%.4f").c_str());
+                fmt_opt(mean_of(&SeqResult::ate_pct), "%.4f").c_str());
+    if (show_x)
+      std::printf(" %-10s", fmt_opt(mean_of(&SeqResult::disagreement_pct), "%.4f").c_str());
     for (size_t i = 0; i < setup.params.size(); ++i) {
       std::printf(" %s", format_tune_value(setup.params[i], c.candidate.values[i]).c_str());
     }
@@ -497,18 +510,16 @@ int cmd_tune(int argc, char** argv) {
   std::printf("\n");
   // With ground truth, how the consistency objective ranks the rung-1 candidates against ATE.
   {
-    std::vector<double> a, c;  // rung-0 scores of every candidate, from the store
+    std::vector<double> a, c;  // rung-0 scores of every candidate
     for (const auto& cs : out.candidates) {
-      const auto ov = candidate_overrides(setup.params, cs.candidate);
       double sa = 0, sc = 0;
-      for (const auto& s : setup.sequences) {
-        const SeqResult* r = store.find(run_key(setup.base_identity, s, setup.plan.frames[0], ov));
-        const SeqResult none;
-        sa += sequence_score(TuneObjective::kAte, r ? *r : none);
-        sc += sequence_score(TuneObjective::kConsistency, r ? *r : none);
+      for (const auto& r : cs.rung0_results) {
+        sa += sequence_score(TuneObjective::kAte, r);
+        sc += sequence_score(TuneObjective::kConsistency, r);
       }
-      a.push_back(sa / static_cast<double>(setup.sequences.size()));
-      c.push_back(sc / static_cast<double>(setup.sequences.size()));
+      const double n = std::max<double>(1.0, static_cast<double>(cs.rung0_results.size()));
+      a.push_back(cs.rung0_results.empty() ? kFailureScore : sa / n);
+      c.push_back(cs.rung0_results.empty() ? kFailureScore : sc / n);
     }
     const size_t best_a = static_cast<size_t>(std::min_element(a.begin(), a.end()) - a.begin());
     const size_t best_c = static_cast<size_t>(std::min_element(c.begin(), c.end()) - c.begin());
@@ -518,9 +529,10 @@ int cmd_tune(int argc, char** argv) {
       std::printf(
           "rank agreement, rung 1 (consistency vs ate objective, %zu configurations): Spearman "
           "%.2f, Kendall %.2f, same best: %s (ate objective of the consistency best %.4f, of the "
-          "ate best %.4f)\n",
+          "ate best %.4f); same order (docs/tune.md: that best within 10%% and Kendall above "
+          "0.6): %s\n",
           a.size(), spearman(a, c), kendall_tau(a, c), best_a == best_c ? "yes" : "no", a[best_c],
-          a[best_a]);
+          a[best_a], a[best_c] <= 1.1 * a[best_a] && kendall_tau(a, c) > 0.6 ? "yes" : "no");
     }
   }
   if (!out.holdout.empty()) {

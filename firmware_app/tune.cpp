@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/trajectory_eval.h"
 #include "firmware_app/config.h"
 #include "firmware_app/report.h"
 
@@ -323,7 +324,7 @@ double sequence_score(TuneObjective o, const SeqResult& r) {
     e = *r.ate_pct;
   } else {
     if (!r.consistency_pct || !r.roughness_pct) return kFailureScore;
-    e = *r.consistency_pct + *r.roughness_pct;
+    e = *r.consistency_pct + *r.roughness_pct + r.disagreement_pct.value_or(0.0);
   }
   const double shortfall = std::max(0.0, kMinTracked - r.tracked_ratio_after_init);
   return std::min(kFailureScore, e + kTrackedWeight * 100.0 * shortfall);
@@ -356,6 +357,50 @@ std::string run_key(const std::string& base_identity, const std::string& sequenc
   add(std::to_string(frames));
   for (const auto& o : overrides) add(o);
   return hex64(h);
+}
+
+std::optional<double> trajectory_distance_pct(const Trajectory& a, const Trajectory& b) {
+  if (a.size() < 3 || b.size() < 3) return std::nullopt;
+  const EvalResult ab = evaluate_trajectories(a, b, EvalParams{});
+  const EvalResult ba = evaluate_trajectories(b, a, EvalParams{});
+  if (!ab.ok || !ba.ok || !(ab.gt_path_length_m > 0.0) || !(ba.gt_path_length_m > 0.0)) {
+    return std::nullopt;
+  }
+  return 0.5 * (ab.ate_pct_path.rmse + ba.ate_pct_path.rmse);
+}
+
+std::vector<std::optional<double>> tune_disagreement_pct(const std::vector<const Trajectory*>& runs,
+                                                         const std::vector<bool>& peer) {
+  if (peer.size() != runs.size()) {
+    throw std::invalid_argument("tune_disagreement_pct: runs and peer differ in size");
+  }
+  const size_t n = runs.size();
+  auto has = [&](size_t i) { return runs[i] != nullptr && runs[i]->size() >= 3; };
+  // Pairwise distances once (symmetric); only pairs with a peer are needed.
+  std::vector<std::optional<double>> d(n * n);
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) {
+      if (has(i) && has(j) && (peer[i] || peer[j])) {
+        d[i * n + j] = d[j * n + i] = trajectory_distance_pct(*runs[i], *runs[j]);
+      }
+    }
+  }
+  std::vector<std::optional<double>> out(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!has(i)) continue;
+    std::vector<double> v;
+    for (size_t j = 0; j < n; ++j) {
+      if (j != i && peer[j] && d[i * n + j]) v.push_back(*d[i * n + j]);
+    }
+    if (v.empty()) {
+      out[i] = 0.0;
+      continue;
+    }
+    std::sort(v.begin(), v.end());
+    const size_t m = v.size();
+    out[i] = m % 2 == 1 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+  }
+  return out;
 }
 
 ResultStore::ResultStore(std::string path) : path_(std::move(path)) {
@@ -469,6 +514,36 @@ std::vector<SeqResult> evaluate(const std::vector<EvalRequest>& reqs, const Eval
   return all;
 }
 
+// The disagreement term of every run in `res` (request order: configuration-major, `nseq`
+// sequences per configuration), compared per sequence among the distinct runs of the batch.
+void set_disagreement(const TuneSetup& setup, const std::vector<EvalRequest>& reqs,
+                      std::vector<SeqResult>& res, size_t nseq) {
+  if (!setup.online_trajectory || nseq == 0) return;
+  for (size_t s = 0; s < nseq; ++s) {
+    std::vector<size_t> first;   // distinct runs of sequence s: index of the first request
+    std::vector<size_t> run_of;  // per request of sequence s: its distinct run
+    for (size_t i = s; i < reqs.size(); i += nseq) {
+      size_t u = 0;
+      while (u < first.size() && reqs[first[u]].key != reqs[i].key) ++u;
+      if (u == first.size()) first.push_back(i);
+      run_of.push_back(u);
+    }
+    std::vector<Trajectory> trajs(first.size());
+    std::vector<const Trajectory*> runs(first.size(), nullptr);
+    std::vector<bool> peer(first.size(), false);
+    for (size_t u = 0; u < first.size(); ++u) {
+      const SeqResult& r = res[first[u]];
+      if (!r.ok || !r.initialized) continue;
+      trajs[u] = setup.online_trajectory(reqs[first[u]].key);
+      runs[u] = &trajs[u];
+      peer[u] = r.tracked_ratio_after_init >= kMinTracked;
+    }
+    const std::vector<std::optional<double>> x = tune_disagreement_pct(runs, peer);
+    for (size_t k = 0, i = s; i < reqs.size(); ++k, i += nseq)
+      res[i].disagreement_pct = x[run_of[k]];
+  }
+}
+
 double mean_score(TuneObjective o, const std::vector<SeqResult>& rs) {
   if (rs.empty()) return kFailureScore;
   double sum = 0.0;
@@ -485,7 +560,9 @@ TuneOutcome run_tune(const TuneSetup& setup, const Evaluator& eval, ResultStore&
   if (plan.configs.empty()) throw std::invalid_argument("tune: empty plan");
   const std::vector<TuneCandidate> cands =
       sample_candidates(setup.params, setup.start, plan.configs[0], setup.seed);
-  for (const auto& c : cands) out.candidates.push_back({c, 0, kFailureScore, {}, kFailureScore});
+  for (const auto& c : cands) {
+    out.candidates.push_back({c, 0, kFailureScore, {}, kFailureScore, {}});
+  }
   std::vector<int> alive(cands.size());
   std::iota(alive.begin(), alive.end(), 0);
   const size_t nseq = setup.sequences.size();
@@ -502,13 +579,17 @@ TuneOutcome run_tune(const TuneSetup& setup, const Evaluator& eval, ResultStore&
         "rung " + std::to_string(r + 1) + "/" + std::to_string(plan.configs.size()) + ": " +
         std::to_string(alive.size()) + " configs x " + std::to_string(nseq) + " sequences" +
         (plan.frames[r] > 0 ? " x " + std::to_string(plan.frames[r]) + " frames" : "");
-    const std::vector<SeqResult> res = evaluate(reqs, eval, store, out, progress, what);
+    std::vector<SeqResult> res = evaluate(reqs, eval, store, out, progress, what);
+    set_disagreement(setup, reqs, res, nseq);
     for (size_t k = 0; k < alive.size(); ++k) {
       CandidateScore& cs = out.candidates[alive[k]];
       cs.rung = static_cast<int>(r);
       cs.results.assign(res.begin() + k * nseq, res.begin() + (k + 1) * nseq);
       cs.objective = mean_score(setup.objective, cs.results);
-      if (r == 0) cs.rung0_objective = cs.objective;
+      if (r == 0) {
+        cs.rung0_objective = cs.objective;
+        cs.rung0_results = cs.results;
+      }
     }
     std::stable_sort(alive.begin(), alive.end(), [&](int a, int b) {
       const double oa = out.candidates[a].objective, ob = out.candidates[b].objective;
@@ -539,8 +620,9 @@ TuneOutcome run_tune(const TuneSetup& setup, const Evaluator& eval, ResultStore&
              s, frames, row.ov, row.base});
       }
     }
-    const std::vector<SeqResult> res =
+    std::vector<SeqResult> res =
         evaluate(reqs, eval, store, out, progress, "holdout: defaults, start, best");
+    set_disagreement(setup, reqs, res, setup.holdout.size());
     for (size_t i = 0; i < rows.size(); ++i) {
       HoldoutRow h;
       h.label = rows[i].label;

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "core/trajectory.h"
+
 namespace rdslam {
 
 // One searched parameter: a numeric config key as `rdslam config` prints it (section.key).
@@ -84,6 +86,10 @@ struct SeqResult {
   std::optional<double> consistency_pct;  // online vs final, Sim3-aligned RMS, % of final path
   std::optional<double> roughness_pct;  // online trajectory's roughness (trajectory_roughness_pct)
   double wall_s = 0.0;
+  // Disagreement with the other configurations run on the same sequence at the same frame count
+  // (tune_disagreement_pct): set by run_tune, not stored in the results file (it depends on
+  // which runs are compared). Empty: not computed, or the run has no trajectory.
+  std::optional<double> disagreement_pct;
 };
 
 enum class TuneObjective { kAte, kConsistency };
@@ -93,8 +99,8 @@ const char* to_string(TuneObjective o);
 // The per-sequence score (lower is better; docs/tune.md "Objectives"):
 //   failed run, never initialized, or no error term:   kFailureScore
 //   else: E + kTrackedWeight * 100 * max(0, kMinTracked - tracked_ratio_after_init)
-// with E = ate_pct (ate) or consistency_pct + roughness_pct (consistency). An objective is the
-// mean over the sequences.
+// with E = ate_pct (ate) or consistency_pct + roughness_pct + disagreement_pct (consistency;
+// disagreement counts 0 when empty). An objective is the mean over the sequences.
 constexpr double kFailureScore = 100.0;
 constexpr double kMinTracked = 0.95;
 constexpr double kTrackedWeight = 0.1;
@@ -105,6 +111,21 @@ double sequence_score(TuneObjective o, const SeqResult& r);
 // tracking noise makes a camera path jagged; scale-free like ATE % of path. Empty for fewer
 // than 3 positions or a zero path.
 std::optional<double> trajectory_roughness_pct(const std::vector<Eigen::Vector3d>& positions);
+
+// Symmetric distance of two trajectories of the same sequence: the Sim(3)-aligned RMS of one
+// against the other on their common stamps in % of the other's path, averaged over both
+// directions. Empty when they share fewer than 3 stamps or an alignment is degenerate.
+std::optional<double> trajectory_distance_pct(const Trajectory& a, const Trajectory& b);
+
+// The consistency objective's cross-configuration term (docs/tune.md "Objectives"). `runs`:
+// the online trajectories of the configurations evaluated together on one sequence (nullptr
+// or fewer than 3 poses: no trajectory); `peer[i]`: run i tracked the sequence (at least
+// kMinTracked of its frames after initialization). Per run with a trajectory: the median of
+// its distances (trajectory_distance_pct) to the *other* peers, 0 when it has none; empty for
+// runs without a trajectory. Configurations that track a sequence well agree closely with each
+// other; a run whose poses follow a moving object or drift is far from them.
+std::vector<std::optional<double>> tune_disagreement_pct(const std::vector<const Trajectory*>& runs,
+                                                         const std::vector<bool>& peer);
 
 // Resumable results: one JSON object per line, keyed by a hash of everything that determines
 // the run (base configuration, sequence, frames, overrides). Lines that do not parse (a run
@@ -153,6 +174,9 @@ struct TuneSetup {
   HalvingPlan plan;
   uint64_t seed = 1;
   std::string base_identity;  // the base configuration (dump), part of every run key
+  // A finished run's online trajectory by run key (empty when it has none); without it the
+  // disagreement term is not computed (counts 0 in the consistency objective).
+  std::function<Trajectory(const std::string& key)> online_trajectory;
 };
 
 struct CandidateScore {
@@ -161,6 +185,7 @@ struct CandidateScore {
   double objective = kFailureScore;        // at that rung
   std::vector<SeqResult> results;          // per search sequence, at that rung
   double rung0_objective = kFailureScore;  // at rung 0 (every candidate has one; the plot)
+  std::vector<SeqResult> rung0_results;    // per search sequence, at rung 0
 };
 
 struct HoldoutRow {
@@ -183,7 +208,8 @@ using TuneProgress = std::function<void(size_t, size_t, const std::string&)>;
 // The search: rung by rung, only the runs not in `store` go to `eval`; each finished run is
 // appended to `store` before the next batch starts. Deterministic for a given setup (ties are
 // broken by candidate id). Holdout rows: the built-in defaults, the start and the best
-// candidate on the holdout sequences at the last rung's frame count.
+// candidate on the holdout sequences at the last rung's frame count. The disagreement term is
+// computed per sequence among the runs of one rung (or among the holdout rows).
 TuneOutcome run_tune(const TuneSetup& setup, const Evaluator& eval, ResultStore& store,
                      const TuneProgress& progress);
 

@@ -1,7 +1,8 @@
 // `rdslam tune` end to end on a tiny search: 3 configurations of docs/tune/example.yaml on the
 // first 40 frames of synth:static_xyz, each a real child `rdslam replay`. Checks that
 // best.yaml is accepted by `rdslam config`, that results.jsonl holds one line per run and
-// that running the same command again resumes (runs nothing, same best). The parameter
+// that running the same command again resumes (runs nothing, same best), and that the
+// consistency objective scores the same runs with its disagreement term. The parameter
 // file's errors reach the command line with the key named.
 #include <gtest/gtest.h>
 
@@ -59,6 +60,27 @@ TEST(TuneCli, TinySearchWritesAConfigAndResumes) {
   EXPECT_EQ(line_count(out / "results.jsonl"), 3u);
   EXPECT_FALSE(best_line(first.output).empty()) << first.output;
   EXPECT_EQ(best_line(again.output), best_line(first.output));
+
+  // The same runs scored without ground truth: nothing is replayed (the run keys do not depend
+  // on the objective); the disagreement term is computed from the runs' online trajectories
+  // (runs/KEY/online.tum), so every configuration that tracked shows a value in its column.
+  const auto consistency = t::run_command(cmd + " --objective consistency");
+  ASSERT_EQ(consistency.exit_code, 0) << consistency.output;
+  EXPECT_NE(consistency.output.find("3 replays (3 from results.jsonl)"), std::string::npos)
+      << consistency.output;
+  const size_t header = consistency.output.find(" disagree% ");
+  ASSERT_NE(header, std::string::npos) << consistency.output;
+  std::stringstream table(consistency.output.substr(consistency.output.find('\n', header) + 1));
+  int rows = 0;
+  for (std::string row; std::getline(table, row) && !row.empty() && rows < 3; ++rows) {
+    std::stringstream cols(row);
+    std::string rank, id, rung, objective, ate, x;
+    cols >> rank >> id >> rung >> objective >> ate >> x;
+    EXPECT_GT(std::stod(x), 0.0) << row;
+  }
+  EXPECT_EQ(rows, 3) << consistency.output;
+  EXPECT_NE(consistency.output.find("same order (docs/tune.md"), std::string::npos)
+      << consistency.output;
 }
 
 TEST(TuneCli, ParameterFileErrorsNameTheKey) {

@@ -1,7 +1,8 @@
 // The search behind `rdslam tune` (firmware_app/tune.h) without processes: the parameter-file
 // parser and its messages, the deterministic sampler, the successive-halving plan, the
-// objective formula, rank correlations, and the search loop with a fake evaluator:
-// determinism, halving, holdout rows and resuming from results.jsonl.
+// objective formula with its cross-configuration disagreement term, rank correlations, and the
+// search loop with a fake evaluator: determinism, halving, holdout rows and resuming from
+// results.jsonl.
 #include "firmware_app/tune.h"
 
 #include <gtest/gtest.h>
@@ -202,6 +203,77 @@ TEST(TuneObjective, Roughness) {
   EXPECT_FALSE(trajectory_roughness_pct({line[0], line[1]}).has_value());
 }
 
+// A curved path of n poses, 0.1 s apart, with position noise `wobble` (m) of a fixed pattern
+// whose phase is `phase` (different phases: independent-looking errors).
+Trajectory path(int n, double wobble = 0.0, int phase = 0) {
+  Trajectory t;
+  for (int i = 0; i < n; ++i) {
+    StampedPose p;
+    p.stamp_ns = 100000000LL * i;
+    const double s = 0.1 * i;
+    p.p_world_cam = Eigen::Vector3d(s, std::sin(s), 0.1 * s * s);
+    p.p_world_cam += wobble * Eigen::Vector3d(std::sin(1.7 * (i + phase)),
+                                              std::cos(2.3 * (i + 3 * phase)), std::sin(0.9 * i));
+    t.push_back(p);
+  }
+  return t;
+}
+
+TEST(TuneObjective, TrajectoryDistanceIsSim3InvariantAndSymmetric) {
+  const Trajectory a = path(40);
+  Trajectory b = a;  // the same path in another frame and scale: no disagreement
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
+  for (auto& p : b) p.p_world_cam = 3.0 * (q * p.p_world_cam) + Eigen::Vector3d(5, -1, 2);
+  ASSERT_TRUE(trajectory_distance_pct(a, b).has_value());
+  EXPECT_NEAR(*trajectory_distance_pct(a, b), 0.0, 1e-9);
+  const Trajectory c = path(40, 0.05, 1);
+  ASSERT_TRUE(trajectory_distance_pct(a, c).has_value());
+  EXPECT_GT(*trajectory_distance_pct(a, c), 0.1);
+  EXPECT_NEAR(*trajectory_distance_pct(a, c), *trajectory_distance_pct(c, a), 1e-12);
+  // Only 2 common stamps: no distance.
+  Trajectory late = path(40);
+  for (auto& p : late) p.stamp_ns += 100000000LL * 38;
+  EXPECT_FALSE(trajectory_distance_pct(a, late).has_value());
+}
+
+TEST(TuneObjective, DisagreementIsTheMedianDistanceToTheOtherPeers) {
+  // Three runs near the truth, one far from it (a pose following something else), one
+  // without a trajectory.
+  const Trajectory g1 = path(60, 0.01, 0), g2 = path(60, 0.01, 5), g3 = path(60, 0.01, 11);
+  Trajectory far = path(60, 0.01, 17);
+  for (size_t i = 30; i < far.size(); ++i) far[i].p_world_cam.z() += 0.05 * (i - 30.0);
+  const std::vector<const Trajectory*> runs = {&g1, &g2, &g3, &far, nullptr};
+  const auto d = [](const Trajectory& x, const Trajectory& y) {
+    return *trajectory_distance_pct(x, y);
+  };
+  const auto median3 = [](double a, double b, double c) {
+    return std::max(std::min(a, b), std::min(std::max(a, b), c));
+  };
+  {
+    const auto x = tune_disagreement_pct(runs, {true, true, true, true, false});
+    ASSERT_EQ(x.size(), 5u);
+    ASSERT_TRUE(x[0] && x[1] && x[2] && x[3]);
+    EXPECT_FALSE(x[4].has_value());
+    EXPECT_NEAR(*x[0], median3(d(g1, g2), d(g1, g3), d(g1, far)), 1e-12);
+    EXPECT_NEAR(*x[3], median3(d(far, g1), d(far, g2), d(far, g3)), 1e-12);
+    for (int i = 0; i < 3; ++i) EXPECT_LT(2.0 * *x[i], *x[3]);
+  }
+  {
+    // The far run did not track the sequence: it is no peer, so the others compare among
+    // themselves only (median of two = their mean), and it is compared with them.
+    const auto x = tune_disagreement_pct(runs, {true, true, true, false, false});
+    EXPECT_NEAR(*x[0], 0.5 * (d(g1, g2) + d(g1, g3)), 1e-12);
+    EXPECT_NEAR(*x[3], median3(d(far, g1), d(far, g2), d(far, g3)), 1e-12);
+  }
+  {
+    // One peer: it has no other peer (0); everyone else is compared with it.
+    const auto x = tune_disagreement_pct(runs, {false, true, false, false, false});
+    EXPECT_EQ(*x[1], 0.0);
+    EXPECT_NEAR(*x[0], d(g1, g2), 1e-12);
+  }
+  EXPECT_THROW(tune_disagreement_pct(runs, {true}), std::invalid_argument);
+}
+
 // A fake pipeline: the score is a smooth function of the overrides (best near threshold 2,
 // keyframe interval 20), shorter runs are noisier but keep the order; counts the runs.
 struct FakeEval {
@@ -293,6 +365,66 @@ TEST(TuneSearch, DeterministicHalvingAndHoldout) {
   EXPECT_EQ(a.holdout[0].label, "defaults");
   EXPECT_EQ(a.holdout[2].label, "best");
   EXPECT_LT(a.holdout[2].objective, a.holdout[1].objective);
+}
+
+// FakeEval that also leaves an online trajectory per run: the path with an error of the run's
+// ATE size, of a pattern set by the run key (different configurations err differently).
+struct FakeEvalWithTrajectories {
+  FakeEval fake;
+  std::map<std::string, Trajectory>* trajectories;
+  void operator()(const std::vector<EvalRequest>& reqs,
+                  const std::function<void(size_t, const SeqResult&)>& done) const {
+    fake(reqs, [&](size_t i, const SeqResult& r) {
+      const int phase = static_cast<int>(std::stoull(reqs[i].key.substr(0, 6), nullptr, 16) % 97);
+      (*trajectories)[reqs[i].key] = path(50, 0.01 * *r.ate_pct, phase);
+      done(i, r);
+    });
+  }
+};
+
+TEST(TuneSearch, ConsistencyComparesTheConfigurationsOfOneRung) {
+  TempDir d;
+  ResultStore store((d.path / "results.jsonl").string());
+  TuneSetup setup = fake_setup();
+  setup.objective = TuneObjective::kConsistency;
+  std::map<std::string, Trajectory> trajectories;
+  setup.online_trajectory = [&](const std::string& key) {
+    const auto it = trajectories.find(key);
+    return it == trajectories.end() ? Trajectory{} : it->second;
+  };
+  int calls = 0;
+  const TuneOutcome out =
+      run_tune(setup, FakeEvalWithTrajectories{FakeEval{&calls}, &trajectories}, store, nullptr);
+  ASSERT_EQ(out.candidates.size(), 9u);
+  size_t lo = 0, hi = 0;  // the candidates with the lowest and highest rung-0 ATE
+  for (size_t i = 0; i < out.candidates.size(); ++i) {
+    const CandidateScore& c = out.candidates[i];
+    ASSERT_EQ(c.rung0_results.size(), 2u);
+    double sum = 0.0;
+    for (const auto& r : c.rung0_results) {
+      ASSERT_TRUE(r.disagreement_pct.has_value());
+      EXPECT_GT(*r.disagreement_pct, 0.0);
+      sum += *r.consistency_pct + *r.roughness_pct + *r.disagreement_pct;
+    }
+    EXPECT_NEAR(c.rung0_objective, sum / 2.0, 1e-12);
+    const double ate = *c.rung0_results[0].ate_pct;
+    if (ate < *out.candidates[lo].rung0_results[0].ate_pct) lo = i;
+    if (ate > *out.candidates[hi].rung0_results[0].ate_pct) hi = i;
+  }
+  // A larger error is further from the other configurations.
+  EXPECT_LT(*out.candidates[lo].rung0_results[0].disagreement_pct,
+            *out.candidates[hi].rung0_results[0].disagreement_pct);
+  // Without trajectories the term is not computed and counts 0.
+  TempDir d2;
+  ResultStore store2((d2.path / "results.jsonl").string());
+  setup.online_trajectory = nullptr;
+  int calls2 = 0;
+  const TuneOutcome plain = run_tune(setup, FakeEval{&calls2}, store2, nullptr);
+  for (const auto& c : plain.candidates) {
+    EXPECT_FALSE(c.rung0_results[0].disagreement_pct.has_value());
+  }
+  ASSERT_EQ(out.holdout.size(), 3u);
+  for (const auto& h : out.holdout) EXPECT_TRUE(h.results[0].disagreement_pct.has_value());
 }
 
 TEST(TuneSearch, ResumesFromTheResultsFile) {
