@@ -366,7 +366,9 @@ std::optional<double> trajectory_distance_pct(const Trajectory& a, const Traject
   if (!ab.ok || !ba.ok || !(ab.gt_path_length_m > 0.0) || !(ba.gt_path_length_m > 0.0)) {
     return std::nullopt;
   }
-  return 0.5 * (ab.ate_pct_path.rmse + ba.ate_pct_path.rmse);
+  const double d = 0.5 * (ab.ate_pct_path.rmse + ba.ate_pct_path.rmse);
+  if (!std::isfinite(d)) return std::nullopt;  // a non-finite pose in a trajectory file
+  return d;
 }
 
 std::vector<std::optional<double>> tune_disagreement_pct(const std::vector<const Trajectory*>& runs,

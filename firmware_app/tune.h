@@ -114,7 +114,8 @@ std::optional<double> trajectory_roughness_pct(const std::vector<Eigen::Vector3d
 
 // Symmetric distance of two trajectories of the same sequence: the Sim(3)-aligned RMS of one
 // against the other on their common stamps in % of the other's path, averaged over both
-// directions. Empty when they share fewer than 3 stamps or an alignment is degenerate.
+// directions. Empty when they share fewer than 3 stamps, an alignment is degenerate or the
+// result is not finite.
 std::optional<double> trajectory_distance_pct(const Trajectory& a, const Trajectory& b);
 
 // The consistency objective's cross-configuration term (docs/tune.md "Objectives"). `runs`:

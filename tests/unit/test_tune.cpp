@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <string>
 
@@ -234,6 +235,10 @@ TEST(TuneObjective, TrajectoryDistanceIsSim3InvariantAndSymmetric) {
   Trajectory late = path(40);
   for (auto& p : late) p.stamp_ns += 100000000LL * 38;
   EXPECT_FALSE(trajectory_distance_pct(a, late).has_value());
+  // A non-finite position (a corrupt file): no distance, never a NaN in an objective.
+  Trajectory bad = path(40);
+  bad[7].p_world_cam.x() = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(trajectory_distance_pct(a, bad).has_value());
 }
 
 TEST(TuneObjective, DisagreementIsTheMedianDistanceToTheOtherPeers) {
