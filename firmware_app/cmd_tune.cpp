@@ -357,8 +357,7 @@ int cmd_tune(int argc, char** argv) {
   p.option("--objective", &objective_text, "ate|consistency",
            "ate: ATE % of path (needs ground truth); consistency: online vs final trajectory "
            "agreement plus path roughness plus disagreement with the other configurations that "
-           "track the "
-           "sequence, no ground truth (default ate; docs/tune.md)");
+           "track the sequence, no ground truth (default ate; docs/tune.md)");
   p.repeated("--holdout", &holdout, "H1 [H2 ...]",
              "sequences never used in the search: the defaults, the start and the best "
              "configuration are compared on them");
@@ -512,15 +511,10 @@ int cmd_tune(int argc, char** argv) {
   {
     std::vector<double> a, c;  // rung-0 scores of every candidate
     for (const auto& cs : out.candidates) {
-      double sa = 0, sc = 0;
-      for (const auto& r : cs.rung0_results) {
-        sa += sequence_score(TuneObjective::kAte, r);
-        sc += sequence_score(TuneObjective::kConsistency, r);
-      }
-      const double n = std::max<double>(1.0, static_cast<double>(cs.rung0_results.size()));
-      a.push_back(cs.rung0_results.empty() ? kFailureScore : sa / n);
-      c.push_back(cs.rung0_results.empty() ? kFailureScore : sc / n);
+      a.push_back(mean_score(TuneObjective::kAte, cs.rung0_results));
+      c.push_back(mean_score(TuneObjective::kConsistency, cs.rung0_results));
     }
+    const double tau = kendall_tau(a, c);
     const size_t best_a = static_cast<size_t>(std::min_element(a.begin(), a.end()) - a.begin());
     const size_t best_c = static_cast<size_t>(std::min_element(c.begin(), c.end()) - c.begin());
     bool any_gt = false;
@@ -531,8 +525,8 @@ int cmd_tune(int argc, char** argv) {
           "%.2f, Kendall %.2f, same best: %s (ate objective of the consistency best %.4f, of the "
           "ate best %.4f); same order (docs/tune.md: that best within 10%% and Kendall above "
           "0.6): %s\n",
-          a.size(), spearman(a, c), kendall_tau(a, c), best_a == best_c ? "yes" : "no", a[best_c],
-          a[best_a], a[best_c] <= 1.1 * a[best_a] && kendall_tau(a, c) > 0.6 ? "yes" : "no");
+          a.size(), spearman(a, c), tau, best_a == best_c ? "yes" : "no", a[best_c], a[best_a],
+          a[best_c] <= 1.1 * a[best_a] && tau > 0.6 ? "yes" : "no");
     }
   }
   if (!out.holdout.empty()) {

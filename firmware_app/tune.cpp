@@ -330,6 +330,13 @@ double sequence_score(TuneObjective o, const SeqResult& r) {
   return std::min(kFailureScore, e + kTrackedWeight * 100.0 * shortfall);
 }
 
+double mean_score(TuneObjective o, const std::vector<SeqResult>& rs) {
+  if (rs.empty()) return kFailureScore;
+  double sum = 0.0;
+  for (const auto& r : rs) sum += sequence_score(o, r);
+  return sum / static_cast<double>(rs.size());
+}
+
 std::optional<double> trajectory_roughness_pct(const std::vector<Eigen::Vector3d>& positions) {
   if (positions.size() < 3) return std::nullopt;
   double path = 0.0, sum_sq = 0.0;
@@ -544,13 +551,6 @@ void set_disagreement(const TuneSetup& setup, const std::vector<EvalRequest>& re
     for (size_t k = 0, i = s; i < reqs.size(); ++k, i += nseq)
       res[i].disagreement_pct = x[run_of[k]];
   }
-}
-
-double mean_score(TuneObjective o, const std::vector<SeqResult>& rs) {
-  if (rs.empty()) return kFailureScore;
-  double sum = 0.0;
-  for (const auto& r : rs) sum += sequence_score(o, r);
-  return sum / static_cast<double>(rs.size());
 }
 
 }  // namespace

@@ -105,6 +105,9 @@ constexpr double kFailureScore = 100.0;
 constexpr double kMinTracked = 0.95;
 constexpr double kTrackedWeight = 0.1;
 double sequence_score(TuneObjective o, const SeqResult& r);
+// The objective of a configuration: the mean of sequence_score over its sequences
+// (kFailureScore when there are none).
+double mean_score(TuneObjective o, const std::vector<SeqResult>& rs);
 
 // Roughness of a trajectory without ground truth: the RMS of the second differences of the
 // consecutive positions (p[i+1] - 2 p[i] + p[i-1]) in % of the path length (sum of the steps):

@@ -39,10 +39,6 @@ def stamped(path):
     return out
 
 
-def positions(path):
-    return [p for _, p in stamped(path)]
-
-
 def aligned_rms_pct(gt, est):
     """Sim(3) (Umeyama) alignment of est onto gt on common stamps; RMS in % of gt's path."""
     g, e = dict(gt), dict(est)
