@@ -4,6 +4,7 @@
 #include <ceres/rotation.h>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <unordered_map>
 
@@ -87,6 +88,9 @@ void BundleAdjustmentParams::visit(ParamVisitor& v) {
   v.field("iterations", iterations, 1, 100, "Levenberg-Marquardt iterations per pass");
   v.field("huber_px", huber_px, 0.1, 100.0, "Huber threshold on the normalised residual");
   v.field("second_pass", second_pass, "re-optimise after removing outliers");
+  v.field("keep_scale", keep_scale,
+          "with a single fixed keyframe (a young map), rescale the solution about it so that the "
+          "optimised keyframes keep their scale (the cost is invariant to it)");
 }
 
 BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
@@ -193,6 +197,48 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
       if (bad) {
         map.remove_observation(r.pid, r.kf);
         ++st.outliers_removed;
+      }
+    }
+  }
+  // Gauge: with one fixed keyframe the cost is invariant to a scaling about its centre, so
+  // the scale of the solution is arbitrary (Levenberg-Marquardt's damping leaks into it).
+  // Scale it back to the keyframes' scale before the optimisation (least squares).
+  if (params.keep_scale && st.fixed == 1) {
+    const Keyframe* gauge = nullptr;
+    int gauges = 0;
+    for (auto& [id, x] : pose_x) {
+      const Keyframe* kf = map.keyframe(id);
+      if (kf && (fixed.count(id) || kf->fixed)) {
+        gauge = kf;
+        ++gauges;
+      }
+    }
+    if (gauges == 1) {
+      const Eigen::Vector3d c0 = gauge->T_cam_world.inverse().t;
+      double num = 0, den = 0;
+      for (auto& [id, x] : pose_x) {
+        const Keyframe* kf = map.keyframe(id);
+        if (!kf || kf == gauge) continue;
+        const Eigen::Vector3d before = kf->T_cam_world.inverse().t - c0;
+        const Eigen::Vector3d after = params_to_pose(x.data()).inverse().t - c0;
+        num += before.dot(after);
+        den += after.squaredNorm();
+      }
+      const double s = den > 0 ? num / den : 1.0;
+      if (std::isfinite(s) && s > 0.5 && s < 2.0) {
+        st.rescale = s;
+        for (auto& [id, x] : pose_x) {
+          const Keyframe* kf = map.keyframe(id);
+          if (!kf || kf == gauge) continue;
+          Pose T = params_to_pose(x.data());
+          const Eigen::Vector3d c = T.inverse().t;
+          T.t = -(T.R * (c0 + s * (c - c0)));
+          pose_to_params(T, x.data());
+        }
+        for (auto& [pid, x] : point_x) {
+          const Eigen::Vector3d p = c0 + s * (Eigen::Vector3d(x[0], x[1], x[2]) - c0);
+          x = {p.x(), p.y(), p.z()};
+        }
       }
     }
   }

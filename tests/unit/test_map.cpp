@@ -1,6 +1,7 @@
 // Map bookkeeping: observations on both sides and Sec. 4's 90% keyframe rule (Map::redundancy),
 // the one rule the mapper's culling and the map updater's keyframe check share; local bundle
-// adjustment on a map (core/bundle_adjustment.h), with and without its stop predicate.
+// adjustment on a map (core/bundle_adjustment.h), with and without its stop predicate, and
+// its gauge rule for a map with a single fixed keyframe (keep_scale).
 #include <gtest/gtest.h>
 
 #include <random>
@@ -140,6 +141,84 @@ TEST(BundleAdjust, ConvergesAndStopsWhenAskedKeepingTheFirstIteration) {
       bundle_adjust(never.map, never.K, window, params, [] { return false; });
   EXPECT_FALSE(c.stopped);
   EXPECT_DOUBLE_EQ(c.final_cost, a.final_cost);
+}
+
+// Sum of squared reprojection errors (pixels) over every observation in the map.
+double reprojection_sq(const BaScene& s) {
+  double e = 0;
+  for (const auto& [id, p] : s.map.points) {
+    for (const auto& o : p.obs) {
+      const Keyframe& kf = s.map.keyframes.at(o.kf);
+      const Eigen::Vector2d u = s.K.project(kf.T_cam_world * p.p_world);
+      const cv::Point2f& x = kf.features.un[o.feat];
+      e += (u - Eigen::Vector2d(x.x, x.y)).squaredNorm();
+    }
+  }
+  return e;
+}
+
+Eigen::Vector3d centre(const Keyframe& kf) {
+  return kf.T_cam_world.inverse().t;
+}
+
+// With only the first keyframe fixed, a uniform scaling of everything else about its centre
+// leaves every reprojection unchanged: the scale of the solution is a gauge. keep_scale scales
+// the solution back so that the optimised keyframes keep the scale they had before (least
+// squares over their centres): the same reprojection error as without it, the keyframes'
+// scale unchanged, and the two solutions one scaling (stats.rescale) apart. With two fixed
+// keyframes the scale is not free and keep_scale changes nothing.
+TEST(BundleAdjust, KeepScaleRemovesOnlyTheGaugeScaleOfASingleFixedKeyframe) {
+  const std::vector<int> window{0, 1, 2, 3, 4};
+  auto gauge_scene = [] {
+    BaScene s = ba_scene();
+    s.map.keyframes.at(1).fixed = false;
+    // The free part starts 4% too large: the optimiser has no reason to undo that.
+    for (int k = 1; k < 5; ++k) {
+      Keyframe& kf = s.map.keyframes.at(k);
+      const Eigen::Vector3d c = 1.04 * centre(kf);
+      kf.T_cam_world.t = -(kf.T_cam_world.R * c);
+    }
+    for (auto& [id, p] : s.map.points) p.p_world *= 1.04;
+    return s;
+  };
+  BaScene before = gauge_scene();
+  BaScene free_scale = gauge_scene();
+  BundleAdjustmentParams params;
+  params.keep_scale = false;
+  const BundleAdjustmentStats a = bundle_adjust(free_scale.map, free_scale.K, window, params);
+  EXPECT_DOUBLE_EQ(a.rescale, 1.0);
+  BaScene kept = gauge_scene();
+  params.keep_scale = true;
+  const BundleAdjustmentStats b = bundle_adjust(kept.map, kept.K, window, params);
+  EXPECT_EQ(b.fixed, 1);
+  EXPECT_NE(b.rescale, 1.0);
+  EXPECT_NEAR(reprojection_sq(kept), reprojection_sq(free_scale),
+              1e-6 * reprojection_sq(free_scale));
+  double num = 0, den = 0;
+  for (int k = 1; k < 5; ++k) {
+    const Eigen::Vector3d c_before = centre(before.map.keyframes.at(k));
+    const Eigen::Vector3d c_kept = centre(kept.map.keyframes.at(k));
+    const Eigen::Vector3d c_free = centre(free_scale.map.keyframes.at(k));
+    EXPECT_LT((c_kept - b.rescale * c_free).norm(), 1e-9) << "keyframe " << k;
+    num += c_before.dot(c_kept);
+    den += c_kept.squaredNorm();
+  }
+  EXPECT_NEAR(num / den, 1.0, 1e-9) << "the keyframes keep their scale (first centre at 0)";
+  for (const auto& [id, p] : kept.map.points) {
+    EXPECT_LT((p.p_world - b.rescale * free_scale.map.points.at(id).p_world).norm(), 1e-9);
+  }
+
+  BaScene two_fixed = ba_scene();  // keyframes 0 and 1 fixed: the scale is not a gauge
+  BaScene two_fixed_ref = ba_scene();
+  const BundleAdjustmentStats c = bundle_adjust(two_fixed.map, two_fixed.K, window, params);
+  params.keep_scale = false;
+  bundle_adjust(two_fixed_ref.map, two_fixed_ref.K, window, params);
+  EXPECT_EQ(c.fixed, 2);
+  EXPECT_DOUBLE_EQ(c.rescale, 1.0);
+  for (int k = 2; k < 5; ++k) {
+    EXPECT_EQ(two_fixed.map.keyframes.at(k).T_cam_world.t,
+              two_fixed_ref.map.keyframes.at(k).T_cam_world.t);
+  }
 }
 
 }  // namespace
