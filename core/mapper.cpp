@@ -15,6 +15,8 @@ namespace rdslam {
 
 void MapperParams::visit(ParamVisitor& v) {
   v.field("m2", m2, 0, 100000, "paper Sec. 4: new points a keyframe must contribute (50-100)");
+  v.field("m2_weak_tracking", m2_weak_tracking,
+          "a candidate that tracked fewer points than m2 needs more new points than it tracked");
   v.field("related_keyframes", related_keyframes, 1, 50,
           "paper Sec. 4: keyframes matched for triangulation");
   v.field("max_keyframes", max_keyframes, 3, 100000, "cap on keyframes (oldest culled)");
@@ -588,12 +590,13 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   // The keyframe path of Sec. 4, for a candidate that passed the tracker's conditions (m1):
   // insert it, triangulate new tracks with the related keyframes, keep it only under
   // condition m2, then fuse, refine the tracks, run local BA, cull and publish.
-  const int id = insert_keyframe(c);
+  int tracked = 0;
+  const int id = insert_keyframe(c, &tracked);
   const std::vector<int> related = related_keyframes(id);
   std::vector<int64_t> created;
   const int n_new = triangulate(id, related, c.image, created);
   stats_.last_new_points = n_new;
-  if (!accept_keyframe(id, n_new, created, c.image)) return;
+  if (!accept_keyframe(id, n_new, tracked, created, c.image)) return;
   fuse(id, related);
   refine_new_tracks(created);
   update_keyframe_points(id);
@@ -607,7 +610,7 @@ void Mapper::handle_keyframe(const KeyframeCandidate& c) {
   publish();
 }
 
-int Mapper::insert_keyframe(const KeyframeCandidate& c) {
+int Mapper::insert_keyframe(const KeyframeCandidate& c, int* tracked) {
   // The candidate enters the map as keyframe next_kf_id (not yet counted: condition m2 may
   // still remove it), with the observations of the map points the tracker matched in it.
   const int id = map_.next_kf_id;
@@ -620,16 +623,19 @@ int Mapper::insert_keyframe(const KeyframeCandidate& c) {
   kf.point_of.assign(c.features.count, -1);
   for (int j = 0; j < c.features.count && j < static_cast<int>(c.point_of.size()); ++j) {
     const int64_t pid = c.point_of[j];
-    if (pid >= 0) map_.add_observation(pid, id, j);
+    if (pid >= 0 && map_.add_observation(pid, id, j)) ++*tracked;
   }
   return id;
 }
 
-bool Mapper::accept_keyframe(int id, int n_new, const std::vector<int64_t>& created,
+bool Mapper::accept_keyframe(int id, int n_new, int tracked, const std::vector<int64_t>& created,
                              const cv::Mat& image) {
   // Sec. 4 condition 3 (m2): only a frame contributing more than m2 new points becomes a
-  // keyframe; otherwise it is discarded with the points it created.
-  if (n_new <= params_.m2) {
+  // keyframe; otherwise it is discarded with the points it created. A weakly tracked frame
+  // (m2_weak_tracking: fewer tracked points than m2) is kept when it contributes more new
+  // points than it tracked.
+  const int need = params_.m2_weak_tracking ? std::min(params_.m2, tracked) : params_.m2;
+  if (n_new <= need) {
     for (int64_t pid : created) map_.erase_point(pid);
     map_.erase_keyframe(id);
     ++stats_.keyframes_rejected;

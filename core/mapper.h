@@ -13,7 +13,9 @@
 //     parallax (`min_parallax_deg`), cheirality and reprojection checks and, with
 //     dynamic.check_new_points, a third view (a recent frame must agree); then a new point;
 //  4. condition m2 (Sec. 4 condition 3): the candidate becomes a keyframe only if it
-//     contributed more than `m2` new points; otherwise it goes with its new points;
+//     contributed more than `m2` new points (with `m2_weak_tracking`, a candidate that tracked
+//     fewer points than m2: more new points than it tracked); otherwise it goes with its new
+//     points;
 //  5. fusion by projection: the points of the related keyframes and of their 5 most covisible
 //     keyframes into the new keyframe, its points into the related keyframes
 //     (MatchPurpose::kFuse);
@@ -126,6 +128,10 @@ struct MapperParams {
   int merge_min_inliers = 20;       // recovery: Sim(3) RANSAC inliers to merge
   int merge_min_matches = 50;       // recovery: features matched by projection to merge
   bool ba_yield = true;             // live: local BA stops when another keyframe waits
+  // A candidate that tracked fewer map points than m2 (driving forward at a low frame rate:
+  // the points in view run out) is kept when it contributes more new points than it tracked,
+  // i.e. at least doubles them; m2 alone would refuse the keyframe the tracker needs most.
+  bool m2_weak_tracking = true;
   // Young map (fewer than ba_young_keyframes keyframes): the local BA window is
   // ba_young_window keyframes, extended (up to ba.window) while its keyframes span fewer than
   // ba_young_span_frames tracker frames (fast motion, nearly every frame a keyframe).
@@ -235,7 +241,7 @@ class Mapper {
   // The keyframe path (steps in order; see the header comment).
   bool update_on_candidate(const KeyframeCandidate& c);
   void handle_keyframe(const KeyframeCandidate& c);
-  int insert_keyframe(const KeyframeCandidate& c);
+  int insert_keyframe(const KeyframeCandidate& c, int* tracked);
   std::vector<int> related_keyframes(int kf) const;
   // `image`: the candidate's frame (dynamic.check_new_points compares windows in it). Appends
   // the new points' ids to `created`; returns their number.
@@ -246,7 +252,7 @@ class Mapper {
   bool triangulate_match(const Keyframe& C, const Keyframe& R, int j, int i, const cv::Mat& image,
                          Eigen::Vector3d& p);
   int64_t create_point(int kf, int rid, int j, int i, const Eigen::Vector3d& p);
-  bool accept_keyframe(int kf, int n_new, const std::vector<int64_t>& created,
+  bool accept_keyframe(int kf, int n_new, int tracked, const std::vector<int64_t>& created,
                        const cv::Mat& image);
   int fuse(int kf, const std::vector<int>& related);
   int project_and_add(int64_t pid, int kf);

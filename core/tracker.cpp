@@ -71,6 +71,8 @@ void TrackerParams::visit(ParamVisitor& v) {
   v.field("fast_motion_levels", fast_motion_levels, 0, 8,
           "ORB pyramid levels once an initialization attempt sees fast motion "
           "(init_fast_flow_frac; 0 or <= features.levels: off)");
+  v.field("fast_motion_features", fast_motion_features, 0, 10000,
+          "features per frame on the fast-motion pyramid (0: features.max_features)");
   v.field("sync_mapper", sync_mapper,
           "wait for the mapper after each keyframe (lossless replay only; never for cameras)");
   PrefixVisitor init_v(v, "init_");
@@ -98,6 +100,21 @@ Pose scale_motion(const Pose& motion, double s) {
   return Pose{Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix(), motion.t * s};
 }
 
+// Whether the run may switch to the fast-motion pyramid (TrackerParams::fast_motion_levels).
+bool fast_motion_enabled(const TrackerParams& params, const FeatureParams& features) {
+  return features.binary() && params.fast_motion_levels > features.levels;
+}
+
+// The features a frame can carry: features.max_features, or the fast-motion budget when the
+// run may switch to it and it is larger. The per-frame buffers are sized for it at start.
+FeatureParams with_frame_capacity(const TrackerParams& params, const FeatureParams& features) {
+  FeatureParams f = features;
+  if (fast_motion_enabled(params, features)) {
+    f.max_features = std::max(f.max_features, params.fast_motion_features);
+  }
+  return f;
+}
+
 }  // namespace
 
 void Tracker::FrameState::reset_matches(int n) {
@@ -111,23 +128,23 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
                  const CameraModel& camera, std::shared_ptr<SlamLink> link, int max_points,
                  int max_keyframes)
     : params_(params),
-      fparams_(features),
+      fparams_(with_frame_capacity(params, features)),
       camera_(camera),
       K_{camera.fx, camera.fy, camera.cx, camera.cy},
       link_(std::move(link)),
       extractor_(features, camera),
       initializer_(params.init, features, K_, ba),
-      estimator_(parsac, camera, features.max_features + 64),
+      estimator_(parsac, camera, fparams_.max_features + 64),
       tight_(
           [&] {
             ParsacParams q = parsac;
             q.inlier_threshold_px = params.submotion_gate_px;
             return q;
           }(),
-          camera, features.max_features + 64),
-      reloc_(RelocalizerParams{params.reloc_candidates, params.reloc_node_level}, features,
+          camera, fparams_.max_features + 64),
+      reloc_(RelocalizerParams{params.reloc_candidates, params.reloc_node_level}, fparams_,
              link_->vocabulary, max_keyframes, max_points) {
-  const size_t cap = static_cast<size_t>(features.max_features) + 64;
+  const size_t cap = static_cast<size_t>(fparams_.max_features) + 64;
   for (FrameState* s : {&cur_, &last_}) {
     s->pid.assign(cap, -1);
     s->p.assign(cap, Eigen::Vector3d::Zero());
@@ -151,9 +168,10 @@ Tracker::Tracker(const TrackerParams& params, const FeatureParams& features,
   row_rejected_.assign(row_stamp_.size(), -1);
   kf_votes_.reserve(4096);
   levels_ = std::max(1, features.levels);
-  if (features.binary() && params.fast_motion_levels > features.levels) {
+  if (fast_motion_enabled(params, features)) {
     FeatureParams fast = features;
     fast.levels = params.fast_motion_levels;
+    if (params.fast_motion_features > 0) fast.max_features = params.fast_motion_features;
     fast_extractor_ = std::make_unique<FeatureExtractor>(fast, camera);
     initializer_.set_fast_motion_check(true);
   }

@@ -4,6 +4,8 @@
 // fixed and hold its scale; the window grows back towards ba.window while its keyframes span
 // fewer than ba_young_span_frames tracker frames (fast motion: nearly every frame a keyframe).
 //
+// Also condition m2 with MapperParams::m2_weak_tracking (the last test).
+//
 // The real tracker and mapper run alternately in this thread (as run_offline); after each
 // keyframe the mapper reports the window of its local BA (MapperStats::last_ba_window). The
 // first two keyframes carry their own frame counters (the span the window counts).
@@ -143,6 +145,43 @@ TEST(MapperBaWindow, FirstKeyframesCarryTheirOwnFrameCounters) {
   EXPECT_GT(k1.stamp_ns, k0.stamp_ns);
   EXPECT_EQ(k1.frame_no - k0.frame_no, (k1.stamp_ns - k0.stamp_ns) / period);
   EXPECT_EQ(k0.frame_no, 1 + (k0.stamp_ns - first_stamp) / period) << "the tracker counts from 1";
+}
+
+// Condition m2 for a weakly tracked candidate (MapperParams::m2_weak_tracking): every keyframe
+// candidate is cut down to `kTracked` tracked points before the mapper takes it, and m2 is set
+// out of reach. With the rule on, a candidate that contributes more new points than it tracked
+// is kept; off, m2 refuses them all.
+TEST(MapperM2, WeakTrackingKeepsACandidateThatMoreThanDoublesItsPoints) {
+  constexpr int kTracked = 20;
+  int accepted[2] = {0, 0}, rejected[2] = {0, 0};
+  for (const bool weak : {false, true}) {
+    SlamParams p;
+    p.mapper.m2 = 100000;
+    p.mapper.m2_weak_tracking = weak;
+    Loop loop("static_xyz", 80, p);
+    Frame frame;
+    while (loop.src->read(frame, 1000) == SourceStatus::kOk) {
+      loop.tracker.track(frame);
+      if (KeyframeCandidate* c = loop.link->candidates.front()) {
+        if (c->kind == KeyframeCandidate::Kind::kKeyframe) {
+          int kept = 0;
+          for (int64_t& pid : c->point_of) {
+            if (pid >= 0 && ++kept > kTracked) pid = -1;
+          }
+        }
+      }
+      while (loop.mapper.step(0)) {
+      }
+    }
+    const MapperStats& s = loop.mapper.stats();
+    accepted[weak] = s.keyframes_accepted - 2;  // the initial map's two
+    rejected[weak] = s.keyframes_rejected;
+    std::printf("m2_weak_tracking %d: %d keyframes accepted after the first two, %d refused\n",
+                int(weak), accepted[weak], rejected[weak]);
+  }
+  EXPECT_EQ(accepted[0], 0);
+  EXPECT_GT(rejected[0], 2);
+  EXPECT_GT(accepted[1], 2);
 }
 
 }  // namespace
