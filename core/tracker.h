@@ -182,11 +182,12 @@ struct TrackerParams {
   // default pyramid: 8 levels everywhere measured worse on the indoor scenes (docs/slam.md).
   // 0 or at most features.levels: off.
   int fast_motion_levels = 8;
-  // Features per frame on that pyramid (ORB-SLAM's KITTI setting, 2000; 0: features.max_features):
-  // the tracker's per-frame buffers are sized for the larger of the two at start. With 1200 the
-  // young map of kitti06 `--every 3` runs out of points in view (30-50 inliers per frame) and
-  // loses track on 7 of 72 PARSAC seeds (docs/slam.md, "Fast forward motion").
-  int fast_motion_features = 2000;
+  // Features per frame on that pyramid (0: features.max_features); the tracker's per-frame
+  // buffers are sized for the larger of the two at start. 2000 (ORB-SLAM's KITTI setting) keeps
+  // kitti06 `--every 3`'s map on every PARSAC seed but makes synth:driving worse on 14 of 16
+  // scene seeds that switch to this pyramid (one over 1%): off by default (docs/slam.md, "Fast
+  // forward motion: weak tracking").
+  int fast_motion_features = 0;
   InitializerParams init;
 
   void visit(ParamVisitor& v);
