@@ -121,6 +121,11 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
   for (size_t i = 0; i < anchors.size() && static_cast<int>(i) < params.max_fixed; ++i) {
     fixed.insert(anchors[i].second);
   }
+  // A pose block held constant: an anchor, or a keyframe the map fixes (the first ones).
+  const auto is_fixed = [&](int id) {
+    const Keyframe* kf = map.keyframe(id);
+    return fixed.count(id) || (kf && kf->fixed);
+  };
   std::unordered_map<int, std::array<double, 6>> pose_x;
   for (int id : window) {
     if (map.keyframe(id)) pose_to_params(map.keyframe(id)->T_cam_world, pose_x[id].data());
@@ -160,9 +165,8 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
     if (residuals.empty()) return st;
     int nfixed = 0;
     for (auto& [id, x] : pose_x) {
-      const Keyframe* kf = map.keyframe(id);
       if (!problem.HasParameterBlock(x.data())) continue;
-      if (fixed.count(id) || (kf && kf->fixed)) {
+      if (is_fixed(id)) {
         problem.SetParameterBlockConstant(x.data());
         ++nfixed;
       }
@@ -208,19 +212,19 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
     int gauges = 0;
     for (auto& [id, x] : pose_x) {
       const Keyframe* kf = map.keyframe(id);
-      if (kf && (fixed.count(id) || kf->fixed)) {
+      if (kf && is_fixed(id)) {
         gauge = kf;
         ++gauges;
       }
     }
     if (gauges == 1) {
-      const Eigen::Vector3d c0 = gauge->T_cam_world.inverse().t;
+      const Eigen::Vector3d c0 = gauge->T_cam_world.centre();
       double num = 0, den = 0;
       for (auto& [id, x] : pose_x) {
         const Keyframe* kf = map.keyframe(id);
         if (!kf || kf == gauge) continue;
-        const Eigen::Vector3d before = kf->T_cam_world.inverse().t - c0;
-        const Eigen::Vector3d after = params_to_pose(x.data()).inverse().t - c0;
+        const Eigen::Vector3d before = kf->T_cam_world.centre() - c0;
+        const Eigen::Vector3d after = params_to_pose(x.data()).centre() - c0;
         num += before.dot(after);
         den += after.squaredNorm();
       }
@@ -231,7 +235,7 @@ BundleAdjustmentStats bundle_adjust(Map& map, const PinholeIntrinsics& K,
           const Keyframe* kf = map.keyframe(id);
           if (!kf || kf == gauge) continue;
           Pose T = params_to_pose(x.data());
-          const Eigen::Vector3d c = T.inverse().t;
+          const Eigen::Vector3d c = T.centre();
           T.t = -(T.R * (c0 + s * (c - c0)));
           pose_to_params(T, x.data());
         }

@@ -157,10 +157,6 @@ double reprojection_sq(const BaScene& s) {
   return e;
 }
 
-Eigen::Vector3d centre(const Keyframe& kf) {
-  return kf.T_cam_world.inverse().t;
-}
-
 // With only the first keyframe fixed, a uniform scaling of everything else about its centre
 // leaves every reprojection unchanged: the scale of the solution is a gauge. keep_scale scales
 // the solution back so that the optimised keyframes keep the scale they had before (least
@@ -175,7 +171,7 @@ TEST(BundleAdjust, KeepScaleRemovesOnlyTheGaugeScaleOfASingleFixedKeyframe) {
     // The free part starts 4% too large: the optimiser has no reason to undo that.
     for (int k = 1; k < 5; ++k) {
       Keyframe& kf = s.map.keyframes.at(k);
-      const Eigen::Vector3d c = 1.04 * centre(kf);
+      const Eigen::Vector3d c = 1.04 * kf.T_cam_world.centre();
       kf.T_cam_world.t = -(kf.T_cam_world.R * c);
     }
     for (auto& [id, p] : s.map.points) p.p_world *= 1.04;
@@ -196,9 +192,9 @@ TEST(BundleAdjust, KeepScaleRemovesOnlyTheGaugeScaleOfASingleFixedKeyframe) {
               1e-6 * reprojection_sq(free_scale));
   double num = 0, den = 0;
   for (int k = 1; k < 5; ++k) {
-    const Eigen::Vector3d c_before = centre(before.map.keyframes.at(k));
-    const Eigen::Vector3d c_kept = centre(kept.map.keyframes.at(k));
-    const Eigen::Vector3d c_free = centre(free_scale.map.keyframes.at(k));
+    const Eigen::Vector3d c_before = before.map.keyframes.at(k).T_cam_world.centre();
+    const Eigen::Vector3d c_kept = kept.map.keyframes.at(k).T_cam_world.centre();
+    const Eigen::Vector3d c_free = free_scale.map.keyframes.at(k).T_cam_world.centre();
     EXPECT_LT((c_kept - b.rescale * c_free).norm(), 1e-9) << "keyframe " << k;
     num += c_before.dot(c_kept);
     den += c_kept.squaredNorm();
