@@ -79,7 +79,7 @@ struct MatchingParams {
   // Defaults: ORB limits as tuned per purpose (Hamming of 256 bits; the motion and projection
   // searches are gated by geometry and accept more, the two-view matchers less); SIFT the
   // paper's c < 0.6 with an L2 limit of 250 everywhere (fusion takes the nearest only).
-  MatchRule orb[kMatchPurposes] = {{64, 0.9}, {64, 0.8}, {50, 0.9},
+  MatchRule orb[kMatchPurposes] = {{64, 0.9}, {64, 0.9}, {50, 0.9},
                                    {50, 0.8}, {50, 1.0}, {64, 0.75}};
   MatchRule sift[kMatchPurposes] = {{250, 0.6}, {250, 0.6}, {250, 0.6},
                                     {250, 0.6}, {250, 1.0}, {250, 0.6}};

@@ -88,7 +88,7 @@ TEST(Matching, RulePerPurposeAndModeAndDefaults) {
   const MatchingParams p;
   EXPECT_EQ(p.rule(MatchPurpose::kMotion, true).max_distance, 64);
   EXPECT_EQ(p.rule(MatchPurpose::kMotion, true).ratio, 0.9);
-  EXPECT_EQ(p.rule(MatchPurpose::kLocalMap, true).ratio, 0.8);
+  EXPECT_EQ(p.rule(MatchPurpose::kLocalMap, true).ratio, 0.9);
   EXPECT_EQ(p.rule(MatchPurpose::kInit, true).max_distance, 50);
   EXPECT_EQ(p.rule(MatchPurpose::kTriangulate, true).ratio, 0.8);
   EXPECT_EQ(p.rule(MatchPurpose::kFuse, true).ratio, 1.0);
