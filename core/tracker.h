@@ -183,10 +183,11 @@ struct TrackerParams {
   // 0 or at most features.levels: off.
   int fast_motion_levels = 8;
   // Features per frame on that pyramid (0: features.max_features); the tracker's per-frame
-  // buffers are sized for the larger of the two at start. 2000 (ORB-SLAM's KITTI setting) keeps
-  // kitti06 `--every 3`'s map on every PARSAC seed but makes synth:driving worse on 14 of 16
-  // scene seeds that switch to this pyramid (one over 1%): off by default (docs/slam.md, "Fast
-  // forward motion: weak tracking").
+  // buffers are sized for the larger of the two at start. 2000 (ORB-SLAM's KITTI setting) makes
+  // synth:driving worse on 14 of 16 scene seeds that switch to this pyramid (one over 1%): off
+  // by default. kitti06 `--every 3` keeps its map on every PARSAC seed measured without it since
+  // matching.orb_local_ratio 0.9 (docs/slam.md, "Fast forward motion: weak tracking", "The
+  // projection search's ratio").
   int fast_motion_features = 0;
   InitializerParams init;
 
