@@ -16,6 +16,7 @@
 #include "core/trajectory.h"
 #include "core/trajectory_eval.h"
 #include "firmware_app/config.h"
+#include "tests/cached_frames.h"
 
 namespace rdslam::test {
 

@@ -54,6 +54,7 @@
 
 #include <limits>
 #include <map>
+#include <memory>
 #include <unordered_map>
 #include <utility>
 
@@ -227,13 +228,25 @@ double window_depth_ratio(const SynthScene& scene, const CameraModel& cam, int r
   return hi > 0 ? hi / lo : 0;
 }
 
-DynResult run(bool occlusion_handling, bool map_update = true,
-              const std::string& scenario = "rearrange", int frame_count = kFrames) {
-  SourceOptions opt;
-  // RDSLAM_TEST_SEED: another seed of the scenario (diagnostics; the bars hold for the default).
+// RDSLAM_TEST_SEED: another seed of the scenario (diagnostics; the bars hold for the default).
+int64_t test_seed() {
   const char* seed_env = std::getenv("RDSLAM_TEST_SEED");
-  const int64_t seed = seed_env != nullptr ? std::atoll(seed_env) : -1;
-  std::unique_ptr<FrameSource> src = open_synth_source(scenario, opt, frame_count, seed);
+  return seed_env != nullptr ? std::atoll(seed_env) : -1;
+}
+
+// `frames`: the scenario's first `frame_count` frames rendered earlier (runs that differ only
+// in their configuration share them); null: rendered here.
+DynResult run(bool occlusion_handling, bool map_update = true,
+              const std::string& scenario = "rearrange", int frame_count = kFrames,
+              const test::CachedFrames* frames = nullptr) {
+  SourceOptions opt;
+  const int64_t seed = test_seed();
+  std::unique_ptr<FrameSource> src;
+  if (frames) {
+    src = std::make_unique<test::CachedFrames::Reader>(*frames);
+  } else {
+    src = open_synth_source(scenario, opt, frame_count, seed);
+  }
   const CameraModel cam = *src->camera();
   SynthSequence seq(scenario, frame_count, seed);
   SlamParams params = test::params_from_env();
@@ -636,11 +649,15 @@ TEST(DynamicRearrange, OtherScenariosAgainstGroundTruth) {
 }
 
 TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
-  const DynResult on = run(true);
+  // The three configurations replay the same frames, rendered once.
+  SourceOptions opt;
+  const test::CachedFrames frames(*open_synth_source("rearrange", opt, kFrames, test_seed()));
+  ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
+  const DynResult on = run(true, true, "rearrange", kFrames, &frames);
   print("occlusion-handling", on);
-  const DynResult off = run(false);
+  const DynResult off = run(false, true, "rearrange", kFrames, &frames);
   print("no-occlusion-handling", off);
-  const DynResult none = run(true, false);
+  const DynResult none = run(true, false, "rearrange", kFrames, &frames);
   print("no-map-update", none);
   ASSERT_GT(on.tracked, on.frames / 2)
       << "SLAM must track the sequence for the test to mean anything";

@@ -20,30 +20,44 @@
 # cholmod's buffers under libgomp was the first result). Third-party suppressions:
 # tests/tsan/suppressions.txt. Any report fails (halt_on_error).
 #
-#   tests/tsan/slam_replay.sh [-b BUILD_DIR] [-f FRAMES] [-m MODES]
+#   tests/tsan/slam_replay.sh [-b BUILD_DIR] [-f FRAMES] [-m MODES] [-t TARGETS]
 #
 #   -b BUILD_DIR  default build-tsan-slam (configured here when it has no build.ninja)
 #   -f FRAMES     frames per run (default 90)
 #   -m MODES      run, lossless, realtime, or a quoted list (default "lossless realtime";
 #                 both = "lossless realtime"; CI: -f 50 -m run)
+#   -t TARGETS    also build these test programs in the same tree and the same build call
+#                 (a quoted list, e.g. "test_spsc_ring test_pipeline": the tree is then
+#                 configured with the tests); the caller runs them (.ci/run's TSan stage)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
-build=build-tsan-slam frames=90 modes="lossless realtime"
-while getopts "b:f:m:h" opt; do
+build=build-tsan-slam frames=90 modes="lossless realtime" targets=""
+while getopts "b:f:m:t:h" opt; do
   case "$opt" in
     b) build=$OPTARG ;;
     f) frames=$OPTARG ;;
     m) modes=$OPTARG; [[ $modes == both ]] && modes="lossless realtime" ;;
-    *) sed -n '2,30p' "$0"; exit 2 ;;
+    t) targets=$OPTARG ;;
+    *) sed -n '2,32p' "$0"; exit 2 ;;
   esac
 done
-if [[ ! -f "$build/build.ninja" ]]; then
+with_tests=OFF
+[[ -n "$targets" ]] && with_tests=ON
+# Configured when new, and again when the test programs are wanted in a tree configured
+# without them (cheap: CMake keeps the cache).
+configure=0
+[[ -f "$build/build.ninja" ]] || configure=1
+if [[ $with_tests == ON ]] && ! grep -q "^RDSLAM_BUILD_TESTS:BOOL=ON" "$build/CMakeCache.txt" 2>/dev/null; then
+  configure=1
+fi
+if ((configure)); then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRDSLAM_TSAN=ON \
-    -DRDSLAM_BUILD_TESTS=OFF -DRDSLAM_WERROR=OFF -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    >/dev/null
+    -DRDSLAM_BUILD_TESTS=$with_tests -DRDSLAM_WERROR=OFF \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" >/dev/null
 fi
 t0=$(date +%s)
-cmake --build "$build" --parallel 2 --target rdslam
+# shellcheck disable=SC2086  # the target list is split on purpose
+cmake --build "$build" --parallel 2 --target rdslam $targets
 t1=$(date +%s)
 echo "tsan: build $((t1 - t0)) s"
 export OMP_NUM_THREADS=1

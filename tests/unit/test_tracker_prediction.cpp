@@ -19,6 +19,7 @@
 #include "core/slam.h"
 #include "core/tracker.h"
 #include "drivers/synth_source.h"
+#include "tests/cached_frames.h"
 
 namespace rdslam {
 namespace {
@@ -39,10 +40,10 @@ bool tracked(TrackingState s) {
   return s == TrackingState::kTracking || s == TrackingState::kRelocalized;
 }
 
-GapStats run(bool recorded_stamps) {
-  SourceOptions so;
-  std::unique_ptr<FrameSource> src = open_synth_source("static_xyz", so, kFrames);
-  const CameraModel cam = *src->camera();
+// `frames`: the scene rendered once for both runs.
+GapStats run(const test::CachedFrames& frames, bool recorded_stamps) {
+  test::CachedFrames::Reader src(frames);
+  const CameraModel cam = *src.camera();
   SlamParams p;  // defaults: ORB, PARSAC per frame
   auto link = make_slam_link(p, 2);
   Tracker tracker(p.tracker, p.features, p.mapper.ba, p.parsac, cam, link, p.mapper.max_points,
@@ -58,7 +59,7 @@ GapStats run(bool recorded_stamps) {
   Pose prev_T;
   double err_sum = 0, motion_sum = 0;
   for (int i = 0; i < kFrames; ++i) {
-    if (src->read(frame, 1000) != SourceStatus::kOk) break;
+    if (src.read(frame, 1000) != SourceStatus::kOk) break;
     if (i == 1) period = frame.stamp_ns - prev_stamp;
     prev_stamp = frame.stamp_ns;
     if (i < next_fed) continue;  // dropped
@@ -105,8 +106,11 @@ GapStats run(bool recorded_stamps) {
 }
 
 TEST(TrackerPrediction, ScalesTheLastMotionByTheStampIntervalAfterDroppedFrames) {
-  const GapStats timed = run(true);
-  const GapStats per_frame = run(false);
+  SourceOptions so;
+  const test::CachedFrames frames(*open_synth_source("static_xyz", so, kFrames));
+  ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
+  const GapStats timed = run(frames, true);
+  const GapStats per_frame = run(frames, false);
   std::printf(
       "recorded stamps: %d/%d tracked after drops, prediction error %.3f of the gap's "
       "motion on %d gap frames\n",
