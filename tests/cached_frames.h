@@ -3,8 +3,8 @@
 // outlive them. Threads: one reader per thread; the cache is immutable after construction.
 #pragma once
 
+#include <cstddef>
 #include <optional>
-#include <utility>
 #include <vector>
 
 #include "core/frame_source.h"
@@ -27,7 +27,7 @@ class CachedFrames {
   }
   size_t size() const { return frames_.size(); }
 
-  // A reader over the cache; it must not outlive this object.
+  // A reader over the cache, from its first frame; it must not outlive the cache.
   class Reader : public FrameSource {
    public:
     explicit Reader(const CachedFrames& c) : c_(c) {}
@@ -50,7 +50,6 @@ class CachedFrames {
     const CachedFrames& c_;
     size_t next_ = 0;
   };
-  Reader reader() const { return Reader(*this); }
 
  private:
   SourceInfo info_;
