@@ -8,6 +8,12 @@
 #include <random>
 #include <stdexcept>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#elif defined(__ARM_NEON)
+#include <arm_neon.h>
+#endif
+
 namespace rdslam {
 
 namespace {
@@ -30,16 +36,43 @@ inline float fast_log2(float x) {
               (2.8212026f + (-1.4699568f + (0.44717955f - 0.056570851f * m) * m) * m) * m);
 }
 
+// A texture level: 4 bytes per texel (B, G, R and an unused fourth byte), so that one
+// texel is one 32-bit load and its three channels are filtered as one 4-lane vector.
 struct TexLevel {
   const uint8_t* data = nullptr;
   int w = 0, h = 0;
   size_t step = 0;
 };
 
+// Four floats, one per texel byte (B, G, R, unused). GCC vector extensions: +, -, * are
+// lane-wise IEEE single-precision operations, so a lane computes exactly what the scalar
+// code `w00 * p00[c] + w01 * p01[c] + ...` computes for channel c (same operations, same
+// order; no FMA on baseline x86-64). Frames stay byte-identical to the scalar renderer.
+typedef float Vec4 __attribute__((vector_size(16)));
+typedef int32_t Vec4i __attribute__((vector_size(16)));
+
+inline Vec4 load_texel(const uint8_t* p) {
+#if defined(__SSE2__)
+  int32_t bits;
+  std::memcpy(&bits, p, 4);
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i b = _mm_cvtsi32_si128(bits);
+  return Vec4(_mm_cvtepi32_ps(_mm_unpacklo_epi16(_mm_unpacklo_epi8(b, zero), zero)));
+#elif defined(__ARM_NEON)
+  uint32_t bits;
+  std::memcpy(&bits, p, 4);
+  const uint16x8_t h = vmovl_u8(vcreate_u8(bits));
+  return Vec4(vcvtq_f32_u32(vmovl_u16(vget_low_u16(h))));
+#else
+  return Vec4{static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]),
+              static_cast<float>(p[3])};
+#endif
+}
+
 // Bilinear sample with repeat wrap; (u, v) in [0, 1) (the caller wraps repeats away).
 // Integer truncation of values > -1 replaces floor() and modulo, which cost a libm call and
 // integer divisions per texel on baseline x86-64 and ARMv8 builds.
-inline void bilinear(const TexLevel& L, float u, float v, float* bgr) {
+inline Vec4 bilinear(const TexLevel& L, float u, float v) {
   u = u * static_cast<float>(L.w) - 0.5f;  // in [-0.5, w - 0.5)
   v = v * static_cast<float>(L.h) - 0.5f;
   const int xi = static_cast<int>(u + 1.0f) - 1;  // floor(u) for u > -1
@@ -51,12 +84,9 @@ inline void bilinear(const TexLevel& L, float u, float v, float* bgr) {
   const int y1 = y0 + 1 >= L.h ? 0 : y0 + 1;
   const uint8_t* r0 = L.data + y0 * L.step;
   const uint8_t* r1 = L.data + y1 * L.step;
-  const uint8_t* p00 = r0 + 3 * x0;
-  const uint8_t* p01 = r0 + 3 * x1;
-  const uint8_t* p10 = r1 + 3 * x0;
-  const uint8_t* p11 = r1 + 3 * x1;
   const float w00 = (1 - ax) * (1 - ay), w01 = ax * (1 - ay), w10 = (1 - ax) * ay, w11 = ax * ay;
-  for (int c = 0; c < 3; ++c) bgr[c] = w00 * p00[c] + w01 * p01[c] + w10 * p10[c] + w11 * p11[c];
+  return load_texel(r0 + 4 * x0) * w00 + load_texel(r0 + 4 * x1) * w01 +
+         load_texel(r1 + 4 * x0) * w10 + load_texel(r1 + 4 * x1) * w11;
 }
 
 // x - floor(x) for |x| < 2^23 without libm.
@@ -129,8 +159,10 @@ SynthRenderer::SynthRenderer(const SynthScene& scene) : scene_(scene) {
                  0, 0, cv::INTER_AREA);
       t.mats.push_back(down);
     }
-    for (const cv::Mat& m : t.mats) {
-      CV_Assert(m.isContinuous() || m.step[0] >= static_cast<size_t>(m.cols * 3));
+    for (cv::Mat& m : t.mats) {
+      cv::Mat bgrx;
+      cv::cvtColor(m, bgrx, cv::COLOR_BGR2BGRA);  // the fourth byte is never shown
+      m = bgrx;
       t.levels.push_back({m.data, m.cols, m.rows, m.step[0]});
     }
   }
@@ -459,11 +491,11 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
       const float w = s.A * fx + s.B * fy + s.C;
       float lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
       if constexpr (kLens) lod += lens_lod_[pix];
-      float bgr[3];
       const Texture& tex = *s.tex;
       const int nlev = static_cast<int>(tex.levels.size());
+      Vec4 bgr;
       if (lod <= 0.0f) {
-        bilinear(tex.levels[0], u, v, bgr);
+        bgr = bilinear(tex.levels[0], u, v);
       } else {
         int l0 = static_cast<int>(lod);
         float f = lod - static_cast<float>(l0);
@@ -471,12 +503,8 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
           l0 = nlev - 1;
           f = 0;
         }
-        bilinear(tex.levels[l0], u, v, bgr);
-        if (f > 0.0f) {
-          float b2[3];
-          bilinear(tex.levels[l0 + 1], u, v, b2);
-          for (int c = 0; c < 3; ++c) bgr[c] += f * (b2[c] - bgr[c]);
-        }
+        bgr = bilinear(tex.levels[l0], u, v);
+        if (f > 0.0f) bgr += f * (bilinear(tex.levels[l0 + 1], u, v) - bgr);
       }
       float gain = s.shade * exposure;
       if (spot) {
@@ -492,10 +520,10 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
           gain += exposure * intensity * smooth01((cosang - cos_out) * inv_edge) * lambert / dist2;
         }
       }
-      for (int c = 0; c < 3; ++c) {
-        const float val = bgr[c] * gain + 0.5f;
-        out[c] = static_cast<uint8_t>(val >= 255.0f ? 255.0f : val);
-      }
+      Vec4 val = bgr * gain + 0.5f;
+      val = val >= 255.0f ? Vec4{255.0f, 255.0f, 255.0f, 255.0f} : val;
+      const Vec4i level = __builtin_convertvector(val, Vec4i);  // truncation, as the cast
+      for (int c = 0; c < 3; ++c) out[c] = static_cast<uint8_t>(level[c]);
     }
   }
 }
