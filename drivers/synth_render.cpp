@@ -439,6 +439,35 @@ void SynthRenderer::shade(cv::Mat& image, double frame) {
   }
 }
 
+namespace {
+
+// The 4-lane forms of the per-pixel scalar steps below (std::max(0, x), std::min(1, x),
+// wrap01, fast_log2): the same IEEE operations in the same order, lane by lane, so that a
+// pixel shaded in a group of four gets the bytes it gets alone.
+inline Vec4 clamp01(Vec4 x) {
+  x = Vec4{0.0f, 0.0f, 0.0f, 0.0f} < x ? x : Vec4{0.0f, 0.0f, 0.0f, 0.0f};  // std::max(0, x)
+  return x < 1.0f ? x : Vec4{1.0f, 1.0f, 1.0f, 1.0f};                       // std::min(1, x)
+}
+
+inline Vec4 wrap01(Vec4 x) {
+  Vec4 f = x - __builtin_convertvector(__builtin_convertvector(x, Vec4i), Vec4);
+  f = f < 0.0f ? f + 1.0f : f;
+  return f >= 1.0f ? Vec4{0.0f, 0.0f, 0.0f, 0.0f} : f;
+}
+
+inline Vec4 fast_log2(Vec4 x) {
+  Vec4i bits;
+  std::memcpy(&bits, &x, sizeof(bits));
+  const Vec4 e = __builtin_convertvector(((bits >> 23) & 255) - 127, Vec4);
+  bits = (bits & 0x007FFFFF) | 0x3F800000;
+  Vec4 m;
+  std::memcpy(&m, &bits, sizeof(m));
+  return e + (-1.7417939f +
+              (2.8212026f + (-1.4699568f + (0.44717955f - 0.056570851f * m) * m) * m) * m);
+}
+
+}  // namespace
+
 template <bool kLens>
 void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
   const int W = scene_.camera.width, H = scene_.camera.height;
@@ -458,19 +487,83 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
     intensity = static_cast<float>(scene_.light.intensity);
   }
   const float inv_edge = 1.0f / std::max(1e-6f, cos_in - cos_out);
+  // Texture lookup, lighting and output of one pixel from its texture coordinates (u, v),
+  // mip level, depth and ray at unit depth (dx, dy).
+  auto finish = [&](const QuadSetup& s, float u, float v, float lod, float z, float dx, float dy,
+                    uint8_t* out) {
+    const Texture& tex = *s.tex;
+    const int nlev = static_cast<int>(tex.levels.size());
+    Vec4 bgr;
+    if (lod <= 0.0f) {
+      bgr = bilinear(tex.levels[0], u, v);
+    } else {
+      int l0 = static_cast<int>(lod);
+      float f = lod - static_cast<float>(l0);
+      if (l0 >= nlev - 1) {
+        l0 = nlev - 1;
+        f = 0;
+      }
+      bgr = bilinear(tex.levels[l0], u, v);
+      if (f > 0.0f) bgr += f * (bilinear(tex.levels[l0 + 1], u, v) - bgr);
+    }
+    float gain = s.shade * exposure;
+    if (spot) {
+      // The paper's flashlight (Fig. 1): a soft-edged cone, inverse-square falloff,
+      // Lambertian on the surface.
+      const Eigen::Vector3f X(z * dx, z * dy, z);
+      const Eigen::Vector3f L = X - L_cam;
+      const float dist2 = L.squaredNorm();
+      const float inv = 1.0f / std::sqrt(dist2);
+      const float cosang = L.dot(aim_cam) * inv;
+      if (cosang > cos_out) {
+        const float lambert = std::max(0.0f, -s.n_cam.dot(L) * inv);
+        gain += exposure * intensity * smooth01((cosang - cos_out) * inv_edge) * lambert / dist2;
+      }
+    }
+    Vec4 val = bgr * gain + 0.5f;
+    val = val >= 255.0f ? Vec4{255.0f, 255.0f, 255.0f, 255.0f} : val;
+    const Vec4i level = __builtin_convertvector(val, Vec4i);  // truncation, as the cast
+    for (int c = 0; c < 3; ++c) out[c] = static_cast<uint8_t>(level[c]);
+  };
   for (int y = 0; y < H; ++y) {
     uint8_t* out = image.ptr<uint8_t>(y);
     [[maybe_unused]] const float dy_row = ray_y_[y];
     [[maybe_unused]] const float fy_row = static_cast<float>(y);
-    for (int x = 0; x < W; ++x, out += 3) {
-      const int32_t qi = qbuf_[static_cast<size_t>(y) * W + x];
+    const int32_t* qrow = &qbuf_[static_cast<size_t>(y) * W];
+    const float* zrow = &zbuf_[static_cast<size_t>(y) * W];
+    for (int x = 0; x < W;) {
+      const int32_t qi = qrow[x];
       if (qi < 0) {
         out[0] = out[1] = out[2] = 0;
+        ++x;
+        out += 3;
         continue;
       }
       const QuadSetup& s = quads_[qi];
+      if constexpr (!kLens) {
+        // Four pixels of one quad: their texture coordinates and mip levels as 4-lane
+        // vectors (the steps of the single-pixel path below, lane by lane).
+        if (x + 3 < W && qrow[x + 1] == qi && qrow[x + 2] == qi && qrow[x + 3] == qi) {
+          Vec4 z, dx;
+          std::memcpy(&z, zrow + x, sizeof(z));
+          std::memcpy(&dx, &ray_x_[x], sizeof(dx));
+          const float xf = static_cast<float>(x);
+          const Vec4 fx = Vec4{xf, xf + 1.0f, xf + 2.0f, xf + 3.0f};
+          const float fy = fy_row, dy = dy_row;
+          const Vec4 sc = clamp01(z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0);
+          const Vec4 tc = clamp01(z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0);
+          const Vec4 u = wrap01(s.uv0x + sc * s.uvsx), v = wrap01(s.uv0y + tc * s.uvsy);
+          const Vec4 d2 = dx * dx + dy * dy + 1.0f;
+          const Vec4 w = s.A * fx + s.B * fy + s.C;
+          const Vec4 lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
+          for (int k = 0; k < 4; ++k) finish(s, u[k], v[k], lod[k], z[k], dx[k], dy, out + 3 * k);
+          x += 4;
+          out += 12;
+          continue;
+        }
+      }
       const size_t pix = static_cast<size_t>(y) * W + x;
-      const float z = zbuf_[pix];
+      const float z = zrow[x];
       // (fx, fy): what the plane terms are affine in; (dx, dy): the ray at unit depth.
       float fx, fy, dx, dy;
       if constexpr (kLens) {
@@ -491,39 +584,9 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
       const float w = s.A * fx + s.B * fy + s.C;
       float lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
       if constexpr (kLens) lod += lens_lod_[pix];
-      const Texture& tex = *s.tex;
-      const int nlev = static_cast<int>(tex.levels.size());
-      Vec4 bgr;
-      if (lod <= 0.0f) {
-        bgr = bilinear(tex.levels[0], u, v);
-      } else {
-        int l0 = static_cast<int>(lod);
-        float f = lod - static_cast<float>(l0);
-        if (l0 >= nlev - 1) {
-          l0 = nlev - 1;
-          f = 0;
-        }
-        bgr = bilinear(tex.levels[l0], u, v);
-        if (f > 0.0f) bgr += f * (bilinear(tex.levels[l0 + 1], u, v) - bgr);
-      }
-      float gain = s.shade * exposure;
-      if (spot) {
-        // The paper's flashlight (Fig. 1): a soft-edged cone, inverse-square falloff,
-        // Lambertian on the surface.
-        const Eigen::Vector3f X(z * dx, z * dy, z);
-        const Eigen::Vector3f L = X - L_cam;
-        const float dist2 = L.squaredNorm();
-        const float inv = 1.0f / std::sqrt(dist2);
-        const float cosang = L.dot(aim_cam) * inv;
-        if (cosang > cos_out) {
-          const float lambert = std::max(0.0f, -s.n_cam.dot(L) * inv);
-          gain += exposure * intensity * smooth01((cosang - cos_out) * inv_edge) * lambert / dist2;
-        }
-      }
-      Vec4 val = bgr * gain + 0.5f;
-      val = val >= 255.0f ? Vec4{255.0f, 255.0f, 255.0f, 255.0f} : val;
-      const Vec4i level = __builtin_convertvector(val, Vec4i);  // truncation, as the cast
-      for (int c = 0; c < 3; ++c) out[c] = static_cast<uint8_t>(level[c]);
+      finish(s, u, v, lod, z, dx, dy, out);
+      ++x;
+      out += 3;
     }
   }
 }
