@@ -16,6 +16,22 @@
 
 namespace rdslam {
 
+namespace synth_render_detail {
+
+// A texture level: 4 bytes per texel (B, G, R and an unused fourth byte), so that one
+// texel is one 32-bit load and its three channels are filtered as one 4-lane vector. (Not in
+// the anonymous namespace: SynthRenderer::Texture holds it, and GCC rejects a member of an
+// anonymous-namespace type in a class with linkage when this file is part of a unity build.)
+struct TexLevel {
+  const uint8_t* data = nullptr;
+  int w = 0, h = 0;
+  size_t step = 0;
+};
+
+}  // namespace synth_render_detail
+
+using synth_render_detail::TexLevel;
+
 namespace {
 
 constexpr float kEdgeEps = 1e-5f;  // closes rounding gaps between quads sharing an edge
@@ -35,14 +51,6 @@ inline float fast_log2(float x) {
   return e + (-1.7417939f +
               (2.8212026f + (-1.4699568f + (0.44717955f - 0.056570851f * m) * m) * m) * m);
 }
-
-// A texture level: 4 bytes per texel (B, G, R and an unused fourth byte), so that one
-// texel is one 32-bit load and its three channels are filtered as one 4-lane vector.
-struct TexLevel {
-  const uint8_t* data = nullptr;
-  int w = 0, h = 0;
-  size_t step = 0;
-};
 
 // Four floats, one per texel byte (B, G, R, unused). GCC vector extensions: +, -, * are
 // lane-wise IEEE single-precision operations, so a lane computes exactly what the scalar

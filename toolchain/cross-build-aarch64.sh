@@ -75,7 +75,11 @@ step "sysroot $sysroot"
 step "configuring $build"
 # Benchmarks (timing programs) are not built: timings under emulation mean nothing. The
 # libcamera: source (CSI cameras of the Raspberry Pi) is built: the sysroot has libcamera.
-cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+# A unity build (CMake joins each library's sources into a few translation units: the
+# OpenCV, Eigen and Ceres templates they share are compiled once per batch; the native
+# Release build keeps one unit per file, so a file that compiles only inside a batch is caught
+# there).
+cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_UNITY_BUILD=ON \
   -DCMAKE_TOOLCHAIN_FILE="$here/toolchain/aarch64-linux-gnu.cmake" -DRDSLAM_SYSROOT="$sysroot" \
   -DRDSLAM_WITH_LIBCAMERA=ON -DRDSLAM_BUILD_BENCHMARKS=OFF >/dev/null
 step "building ${targets:-everything}"

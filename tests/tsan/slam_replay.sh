@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # ThreadSanitizer on the real SLAM pipeline (issue 25): rdslam built with -fsanitize=thread
-# (all of core/, drivers/, firmware_app/; -O1 -g1, Ninja, in its own build directory), then
+# (all of core/, drivers/, firmware_app/; -O1 -g1, Ninja, a unity build as CI's ASan stage,
+# in its own build directory), then
 # short runs of synth:rearrange through the pipeline threads with the real stages: tracker,
 # mapper (keyframes, triangulation, local BA), map updating (Sec. 4, on keyframe candidates
 # and frame observations), snapshot publication. Modes:
@@ -52,7 +53,7 @@ if [[ $with_tests == ON ]] && ! grep -q "^RDSLAM_BUILD_TESTS:BOOL=ON" "$build/CM
 fi
 if ((configure)); then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRDSLAM_TSAN=ON \
-    -DRDSLAM_BUILD_TESTS=$with_tests -DRDSLAM_WERROR=OFF \
+    -DRDSLAM_BUILD_TESTS=$with_tests -DRDSLAM_WERROR=OFF -DCMAKE_UNITY_BUILD=ON \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" >/dev/null
 fi
 t0=$(date +%s)
