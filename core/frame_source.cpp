@@ -1,5 +1,7 @@
 #include "core/frame_source.h"
 
+#include <ctime>
+
 namespace rdslam {
 
 const char* to_string(SourceStatus s) {
@@ -14,6 +16,12 @@ const char* to_string(SourceStatus s) {
       return "fault";
   }
   return "unknown";
+}
+
+int64_t mono_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
 }
 
 }  // namespace rdslam

@@ -40,6 +40,10 @@ enum class SourceStatus : uint8_t {
 
 const char* to_string(SourceStatus s);
 
+// CLOCK_MONOTONIC in nanoseconds: the clock of Frame::arrival_mono_ns and of every latency,
+// deadline and watchdog figure in rdslam. Any thread.
+int64_t mono_now_ns();
+
 struct SourceInfo {
   std::string uri;   // as opened, e.g. "tum:/data/seq"
   std::string kind;  // "tum", "euroc", "kitti", "images", "video", "v4l2", "synth", ...

@@ -13,12 +13,6 @@ namespace rdslam {
 
 namespace {
 
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-}
-
 // LCM encodes integers big-endian.
 uint64_t be64(const uint8_t* p) {
   uint64_t v = 0;
@@ -150,7 +144,7 @@ SourceStatus LcmImageSource::read(Frame& out, int timeout_ms) {
   }
   out.format = info_.format;
   out.stamp_ns = pending_.utime * 1000;
-  out.arrival_mono_ns = mono_ns();
+  out.arrival_mono_ns = mono_now_ns();
   out.seq = messages_ - 1;
   out.dataset_index = -1;
   ++counters_.delivered;

@@ -315,9 +315,7 @@ SourceStatus LibcameraSource::read(Frame& out, int timeout_ms) {
     // else the buffer's kernel timestamp; both CLOCK_MONOTONIC ns.
     const std::optional<int64_t> sensor = r->metadata().get(lc::controls::SensorTimestamp);
     out.stamp_ns = sensor ? *sensor : static_cast<int64_t>(buffer->metadata().timestamp);
-    struct timespec ts {};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    out.arrival_mono_ns = static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+    out.arrival_mono_ns = mono_now_ns();
     out.format = out_type_ == CV_8UC3 ? PixelFormat::kBgr8 : PixelFormat::kGray8;
     out.seq = seq_++;
     out.dataset_index = -1;

@@ -21,11 +21,7 @@ namespace {
 
 class SystemMonoClock : public MonoClock {
  public:
-  int64_t now_ns() override {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-  }
+  int64_t now_ns() override { return mono_now_ns(); }
   void sleep_until_ns(int64_t deadline_ns) override {
     if (deadline_ns <= 0) return;
     timespec ts{};

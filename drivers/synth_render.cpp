@@ -39,19 +39,6 @@ constexpr float kEdgeEps = 1e-5f;  // closes rounding gaps between quads sharing
 constexpr int kLensEdgeSamples = 32;
 constexpr double kLensBoxMarginPx = 2.0;
 
-// log2 to ~1e-4 accuracy without libm: exponent plus a quartic in the mantissa. Only used
-// to pick mip levels, where that is far below visible.
-inline float fast_log2(float x) {
-  uint32_t bits;
-  std::memcpy(&bits, &x, 4);
-  const float e = static_cast<float>(static_cast<int>((bits >> 23) & 255) - 127);
-  bits = (bits & 0x007FFFFF) | 0x3F800000;
-  float m;
-  std::memcpy(&m, &bits, 4);
-  return e + (-1.7417939f +
-              (2.8212026f + (-1.4699568f + (0.44717955f - 0.056570851f * m) * m) * m) * m);
-}
-
 // Four floats, one per texel byte (B, G, R, unused). GCC vector extensions: +, -, * are
 // lane-wise IEEE single-precision operations, so a lane computes exactly what the scalar
 // code `w00 * p00[c] + w01 * p01[c] + ...` computes for channel c (same operations, same
@@ -95,13 +82,6 @@ inline Vec4 bilinear(const TexLevel& L, float u, float v) {
   const float w00 = (1 - ax) * (1 - ay), w01 = ax * (1 - ay), w10 = (1 - ax) * ay, w11 = ax * ay;
   return load_texel(r0 + 4 * x0) * w00 + load_texel(r0 + 4 * x1) * w01 +
          load_texel(r1 + 4 * x0) * w10 + load_texel(r1 + 4 * x1) * w11;
-}
-
-// x - floor(x) for |x| < 2^23 without libm.
-inline float wrap01(float x) {
-  float f = x - static_cast<float>(static_cast<int>(x));
-  if (f < 0.0f) f += 1.0f;
-  return f >= 1.0f ? 0.0f : f;
 }
 
 inline float smooth01(float x) {
@@ -449,20 +429,25 @@ void SynthRenderer::shade(cv::Mat& image, double frame) {
 
 namespace {
 
-// The 4-lane forms of the per-pixel scalar steps below (std::max(0, x), std::min(1, x),
-// wrap01, fast_log2): the same IEEE operations in the same order, lane by lane, so that a
-// pixel shaded in a group of four gets the bytes it gets alone.
+// Per-pixel steps on four lanes (GCC vector extensions, lane-wise IEEE operations): a group of
+// four pixels of one quad fills the lanes, a single pixel (the end of a run, a lens camera)
+// broadcasts its values and uses lane 0. One definition for both, so a pixel gets the same bytes
+// either way.
+// min(1, max(0, x)) as std::min / std::max compute it (NaN -> 0).
 inline Vec4 clamp01(Vec4 x) {
   x = Vec4{0.0f, 0.0f, 0.0f, 0.0f} < x ? x : Vec4{0.0f, 0.0f, 0.0f, 0.0f};  // std::max(0, x)
   return x < 1.0f ? x : Vec4{1.0f, 1.0f, 1.0f, 1.0f};                       // std::min(1, x)
 }
 
+// x - floor(x) for |x| < 2^23 without libm.
 inline Vec4 wrap01(Vec4 x) {
   Vec4 f = x - __builtin_convertvector(__builtin_convertvector(x, Vec4i), Vec4);
   f = f < 0.0f ? f + 1.0f : f;
   return f >= 1.0f ? Vec4{0.0f, 0.0f, 0.0f, 0.0f} : f;
 }
 
+// log2 to ~1e-4 accuracy without libm: exponent plus a quartic in the mantissa. Only used
+// to pick mip levels, where that is far below visible.
 inline Vec4 fast_log2(Vec4 x) {
   Vec4i bits;
   std::memcpy(&bits, &x, sizeof(bits));
@@ -495,6 +480,20 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
     intensity = static_cast<float>(scene_.light.intensity);
   }
   const float inv_edge = 1.0f / std::max(1e-6f, cos_in - cos_out);
+  // Texture coordinates (u, v) and mip level of pixels of quad s at depth z, plane terms
+  // (fx, fy) and ray at unit depth (dx, dy), one pixel per lane.
+  auto tex_coords = [](const QuadSetup& s, Vec4 z, Vec4 fx, Vec4 dx, float fy, float dy, Vec4& u,
+                       Vec4& v, Vec4& lod) {
+    const Vec4 sc = clamp01(z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0);
+    const Vec4 tc = clamp01(z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0);
+    u = wrap01(s.uv0x + sc * s.uvsx);
+    v = wrap01(s.uv0y + tc * s.uvsy);
+    // Mip level: log2(z) - log2(cos(view angle)) / 2 + bias (the half keeps grazing
+    // surfaces sharper than isotropic filtering would; GPU-like compromise).
+    const Vec4 d2 = dx * dx + dy * dy + 1.0f;
+    const Vec4 w = s.A * fx + s.B * fy + s.C;
+    lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
+  };
   // Texture lookup, lighting and output of one pixel from its texture coordinates (u, v),
   // mip level, depth and ray at unit depth (dx, dy).
   auto finish = [&](const QuadSetup& s, float u, float v, float lod, float z, float dx, float dy,
@@ -549,27 +548,23 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
       }
       const QuadSetup& s = quads_[qi];
       if constexpr (!kLens) {
-        // Four pixels of one quad: their texture coordinates and mip levels as 4-lane
-        // vectors (the steps of the single-pixel path below, lane by lane).
+        // Four pixels of one quad in the lanes.
         if (x + 3 < W && qrow[x + 1] == qi && qrow[x + 2] == qi && qrow[x + 3] == qi) {
-          Vec4 z, dx;
+          Vec4 z, dx, u, v, lod;
           std::memcpy(&z, zrow + x, sizeof(z));
           std::memcpy(&dx, &ray_x_[x], sizeof(dx));
           const float xf = static_cast<float>(x);
-          const Vec4 fx = Vec4{xf, xf + 1.0f, xf + 2.0f, xf + 3.0f};
-          const float fy = fy_row, dy = dy_row;
-          const Vec4 sc = clamp01(z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0);
-          const Vec4 tc = clamp01(z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0);
-          const Vec4 u = wrap01(s.uv0x + sc * s.uvsx), v = wrap01(s.uv0y + tc * s.uvsy);
-          const Vec4 d2 = dx * dx + dy * dy + 1.0f;
-          const Vec4 w = s.A * fx + s.B * fy + s.C;
-          const Vec4 lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
-          for (int k = 0; k < 4; ++k) finish(s, u[k], v[k], lod[k], z[k], dx[k], dy, out + 3 * k);
+          tex_coords(s, z, Vec4{xf, xf + 1.0f, xf + 2.0f, xf + 3.0f}, dx, fy_row, dy_row, u, v,
+                     lod);
+          for (int k = 0; k < 4; ++k) {
+            finish(s, u[k], v[k], lod[k], z[k], dx[k], dy_row, out + 3 * k);
+          }
           x += 4;
           out += 12;
           continue;
         }
       }
+      // One pixel, broadcast to the lanes.
       const size_t pix = static_cast<size_t>(y) * W + x;
       const float z = zrow[x];
       // (fx, fy): what the plane terms are affine in; (dx, dy): the ray at unit depth.
@@ -583,16 +578,12 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
         dx = ray_x_[x];
         dy = dy_row;
       }
-      const float sc = std::min(1.0f, std::max(0.0f, z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0));
-      const float tc = std::min(1.0f, std::max(0.0f, z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0));
-      const float u = wrap01(s.uv0x + sc * s.uvsx), v = wrap01(s.uv0y + tc * s.uvsy);
-      // Mip level: log2(z) - log2(cos(view angle)) / 2 + bias (the half keeps grazing
-      // surfaces sharper than isotropic filtering would; GPU-like compromise).
-      const float d2 = dx * dx + dy * dy + 1.0f;
-      const float w = s.A * fx + s.B * fy + s.C;
-      float lod = 0.25f * fast_log2(z * z * z * z * s.n2 * d2 / (w * w)) + s.lod_bias;
-      if constexpr (kLens) lod += lens_lod_[pix];
-      finish(s, u, v, lod, z, dx, dy, out);
+      Vec4 u, v, lod;
+      tex_coords(s, Vec4{z, z, z, z}, Vec4{fx, fx, fx, fx}, Vec4{dx, dx, dx, dx}, fy, dy, u, v,
+                 lod);
+      float lod0 = lod[0];
+      if constexpr (kLens) lod0 += lens_lod_[pix];
+      finish(s, u[0], v[0], lod0, z, dx, dy, out);
       ++x;
       out += 3;
     }

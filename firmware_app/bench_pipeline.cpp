@@ -10,6 +10,7 @@
 
 #include "core/latency_histogram.h"
 #include "core/slam.h"
+#include "drivers/preloaded_frames.h"
 #include "drivers/source_factory.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/pipeline.h"
@@ -45,59 +46,6 @@ class LimitedSource : public FrameSource {
   int64_t limit_;
   int64_t delivered_ = 0;
   SourceInfo info_;
-};
-
-// Holds every frame of `inner` in memory (read once, before timing) and replays them: the
-// benchmark then measures the SLAM stages, not the synthetic renderer or the PNG decoder.
-// read() copies the stored image into the caller's pool slot (a memcpy, as a camera driver's
-// DMA copy) and stamps the arrival time, so capture-to-publish latency stays meaningful.
-class PreloadedSource : public FrameSource {
- public:
-  explicit PreloadedSource(FrameSource& inner) : inner_(inner) {
-    info_ = inner.info();
-    for (;;) {
-      Frame f;
-      const SourceStatus s = inner.read(f, 1000);
-      if (s == SourceStatus::kEndOfStream) break;
-      if (s != SourceStatus::kOk) {
-        if (++failures_ > 1000) break;  // a live source that never ends is not preloadable
-        continue;
-      }
-      bytes_ += f.image.total() * f.image.elemSize();
-      frames_.push_back(std::move(f));
-    }
-    info_.frame_count = static_cast<int64_t>(frames_.size());
-  }
-  SourceStatus read(Frame& out, int) override {
-    if (next_ >= frames_.size()) return SourceStatus::kEndOfStream;
-    const Frame& f = frames_[next_++];
-    f.image.copyTo(out.image);
-    out.format = f.format;
-    out.stamp_ns = f.stamp_ns;
-    out.seq = f.seq;
-    out.dataset_index = f.dataset_index;
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    out.arrival_mono_ns = static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-    return SourceStatus::kOk;
-  }
-  const SourceInfo& info() const override { return info_; }
-  std::optional<CameraModel> camera() const override { return inner_.camera(); }
-  std::optional<Trajectory> ground_truth() const override { return inner_.ground_truth(); }
-  SourceCounters counters() const override {
-    SourceCounters c;
-    c.delivered = next_;
-    return c;
-  }
-  double megabytes() const { return bytes_ / (1024.0 * 1024.0); }
-
- private:
-  FrameSource& inner_;
-  SourceInfo info_;
-  std::vector<Frame> frames_;
-  size_t next_ = 0;
-  size_t bytes_ = 0;
-  int failures_ = 0;
 };
 
 // Times the tracker stage itself, split into the tracker's own work and the time it blocked
@@ -180,10 +128,16 @@ int bench_pipeline(int argc, char** argv) {
   SourceOptions so = make_source_options(cfg, overrides, 0.0);
   std::unique_ptr<FrameSource> opened = open_source(uri, so);
   LimitedSource limited(*opened, static_cast<int64_t>(frames_opt));
-  std::unique_ptr<PreloadedSource> preloaded;
-  if (!no_preload) preloaded = std::make_unique<PreloadedSource>(limited);
+  // Every frame in memory before timing (drivers/preloaded_frames.h): the benchmark then
+  // measures the SLAM stages, not the synthetic renderer or the PNG decoder.
+  std::unique_ptr<PreloadedFrames> frames;
+  std::unique_ptr<PreloadedFrames::Reader> preloaded;
+  if (!no_preload) {
+    frames = std::make_unique<PreloadedFrames>(limited);
+    preloaded = std::make_unique<PreloadedFrames::Reader>(*frames);
+  }
   FrameSource& source = preloaded ? static_cast<FrameSource&>(*preloaded) : limited;
-  const double preload_mb = preloaded ? preloaded->megabytes() : 0.0;
+  const double preload_mb = frames ? frames->megabytes() : 0.0;
   const CameraModel camera =
       (!so.camera_overridden && source.camera()) ? *source.camera() : cfg.camera;
   // Threaded lossless replay waits for the mapper at keyframes as `rdslam replay` does. The

@@ -16,12 +16,6 @@ namespace rdslam {
 
 namespace {
 
-int64_t now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-}
-
 // SIGINT/SIGTERM are blocked and polled between frames, so no read or write is ever
 // interrupted half-way: the frame in progress is finished, then the folder is closed.
 class BlockedStopSignals {
@@ -83,7 +77,7 @@ int cmd_record(int argc, char** argv) {
   Frame frame;
   frame.image.create(info.height > 0 ? info.height : 1, info.width > 0 ? info.width : 1,
                      info.format == PixelFormat::kGray8 ? CV_8UC1 : CV_8UC3);
-  const int64_t start = now_ns();
+  const int64_t start = mono_now_ns();
   const int64_t limit_ns = static_cast<int64_t>(seconds * 1e9);
   const char* why = "end of stream";
   int exit_code = 0;
@@ -92,7 +86,7 @@ int cmd_record(int argc, char** argv) {
       why = sig == SIGINT ? "SIGINT" : "SIGTERM";
       break;
     }
-    if (limit_ns > 0 && now_ns() - start >= limit_ns) {
+    if (limit_ns > 0 && mono_now_ns() - start >= limit_ns) {
       why = "--seconds reached";
       break;
     }
@@ -112,9 +106,9 @@ int cmd_record(int argc, char** argv) {
       "%llu faults, %llu skipped, %llu timeouts; %llu write failures\n",
       why, static_cast<unsigned long long>(recorder.written()),
       static_cast<double>(recorder.bytes()) / 1e6, out_dir.c_str(),
-      static_cast<double>(now_ns() - start) / 1e9, static_cast<unsigned long long>(c.delivered),
-      static_cast<unsigned long long>(c.faults), static_cast<unsigned long long>(c.skipped),
-      static_cast<unsigned long long>(c.timeouts),
+      static_cast<double>(mono_now_ns() - start) / 1e9,
+      static_cast<unsigned long long>(c.delivered), static_cast<unsigned long long>(c.faults),
+      static_cast<unsigned long long>(c.skipped), static_cast<unsigned long long>(c.timeouts),
       static_cast<unsigned long long>(recorder.failures()));
   return exit_code;
 }

@@ -53,12 +53,6 @@ class StopSignals {
 // Supervision period: how often the loop below looks at the pipeline.
 constexpr int kSuperviseTickMs = 100;
 
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-}
-
 }  // namespace
 
 int cmd_run(int argc, char** argv) {
@@ -171,7 +165,7 @@ int cmd_run(int argc, char** argv) {
   // Map saves while running (the mapper thread serves the requests, core/keyframe.h).
   const bool can_save = slam.link && !cfg.map.save_path.empty();
   const int64_t save_period_ns = static_cast<int64_t>(cfg.map.save_period_s * 1e9);
-  int64_t next_save_ns = mono_ns() + save_period_ns;
+  int64_t next_save_ns = mono_now_ns() + save_period_ns;
   // Commands over LCM (firmware_app/lcm_commands.h), handled on this thread.
   std::unique_ptr<LcmCommands> commands;
   if (slam.link && !cfg.lcm.command_channel.empty()) {
@@ -183,7 +177,7 @@ int cmd_run(int argc, char** argv) {
     const int sig = signals.wait(std::min(kSuperviseTickMs, notify.tick_period_ms()));
     notify.poll();
     if (commands) commands->poll();
-    if (can_save && save_period_ns > 0 && mono_ns() >= next_save_ns) {
+    if (can_save && save_period_ns > 0 && mono_now_ns() >= next_save_ns) {
       slam.link->save_requests.fetch_add(1);
       next_save_ns += save_period_ns;
     }

@@ -22,12 +22,6 @@
 
 namespace rdslam {
 
-int64_t mono_now_ns() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-}
-
 const char* to_string(PipelineThread t) {
   switch (t) {
     case kCaptureThread:

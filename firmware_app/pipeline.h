@@ -320,7 +320,4 @@ Trajectory replay_trajectory(const ReplayReport& rr, const MapperStage* final_ma
 // free of them needs the process mask (taskset, systemd CPUAffinity=). Start-up only.
 int opencv_threads_for(const ThreadParams& threads);
 
-// CLOCK_MONOTONIC in nanoseconds (the clock of Frame::arrival_mono_ns).
-int64_t mono_now_ns();
-
 }  // namespace rdslam

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <ctime>
 
+#include "core/frame_source.h"
 #include "core/log.h"
 
 namespace rdslam {
@@ -65,9 +66,7 @@ int Notifier::tick_period_ms() const {
 }
 
 int64_t Notifier::clock_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+  return mono_now_ns();
 }
 
 bool Notifier::send(const char* text) {

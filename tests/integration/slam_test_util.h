@@ -15,8 +15,8 @@
 #include "core/slam.h"
 #include "core/trajectory.h"
 #include "core/trajectory_eval.h"
+#include "drivers/preloaded_frames.h"
 #include "firmware_app/config.h"
-#include "tests/cached_frames.h"
 
 namespace rdslam::test {
 

@@ -238,12 +238,12 @@ int64_t test_seed() {
 // in their configuration share them); null: rendered here.
 DynResult run(bool occlusion_handling, bool map_update = true,
               const std::string& scenario = "rearrange", int frame_count = kFrames,
-              const test::CachedFrames* frames = nullptr) {
+              const PreloadedFrames* frames = nullptr) {
   SourceOptions opt;
   const int64_t seed = test_seed();
   std::unique_ptr<FrameSource> src;
   if (frames) {
-    src = std::make_unique<test::CachedFrames::Reader>(*frames);
+    src = std::make_unique<PreloadedFrames::Reader>(*frames);
   } else {
     src = open_synth_source(scenario, opt, frame_count, seed);
   }
@@ -651,7 +651,7 @@ TEST(DynamicRearrange, OtherScenariosAgainstGroundTruth) {
 TEST(DynamicRearrange, InvalidationAgainstGroundTruth) {
   // The three configurations replay the same frames, rendered once.
   SourceOptions opt;
-  const test::CachedFrames frames(*open_synth_source("rearrange", opt, kFrames, test_seed()));
+  const PreloadedFrames frames(*open_synth_source("rearrange", opt, kFrames, test_seed()));
   ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
   const DynResult on = run(true, true, "rearrange", kFrames, &frames);
   print("occlusion-handling", on);

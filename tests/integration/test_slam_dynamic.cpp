@@ -42,14 +42,14 @@ struct SynthRun {
 // `frames`: the scene's frames rendered earlier (the Figure 8 pair shares them); null: rendered
 // here.
 const SynthRun& run_synth(const std::string& scenario, const std::string& method = "parsac",
-                          int64_t seed = -1, const test::CachedFrames* frames = nullptr) {
+                          int64_t seed = -1, const PreloadedFrames* frames = nullptr) {
   static std::map<std::string, SynthRun> cache;
   const std::string key = scenario + "/" + method + "/" + std::to_string(seed);
   auto it = cache.find(key);
   if (it != cache.end()) return it->second;
   std::unique_ptr<FrameSource> src;
   if (frames) {
-    src = std::make_unique<test::CachedFrames::Reader>(*frames);
+    src = std::make_unique<PreloadedFrames::Reader>(*frames);
   } else {
     SourceOptions opt;
     src = open_synth_source(scenario, opt, 300, seed);
@@ -94,7 +94,7 @@ TEST(SlamDynamic, RigidObjectParsacAndRansac) {
   for (int64_t seed : kRigidSeeds) {
     // Both estimators replay the same frames, rendered once (276 MB of BGR frames per seed).
     SourceOptions opt;
-    const test::CachedFrames frames(*open_synth_source("rigid_object", opt, 300, seed));
+    const PreloadedFrames frames(*open_synth_source("rigid_object", opt, 300, seed));
     ASSERT_EQ(frames.size(), 300u) << "seed " << seed;
     const SynthRun& r = run_synth("rigid_object", "parsac", seed, &frames);
     ASSERT_GE(r.s.first_tracked, 0) << "seed " << seed << ": never initialized";

@@ -18,8 +18,8 @@
 #include "core/mapper.h"
 #include "core/slam.h"
 #include "core/tracker.h"
+#include "drivers/preloaded_frames.h"
 #include "drivers/synth_source.h"
-#include "tests/cached_frames.h"
 
 namespace rdslam {
 namespace {
@@ -41,8 +41,8 @@ bool tracked(TrackingState s) {
 }
 
 // `frames`: the scene rendered once for both runs.
-GapStats run(const test::CachedFrames& frames, bool recorded_stamps) {
-  test::CachedFrames::Reader src(frames);
+GapStats run(const PreloadedFrames& frames, bool recorded_stamps) {
+  PreloadedFrames::Reader src(frames);
   const CameraModel cam = *src.camera();
   SlamParams p;  // defaults: ORB, PARSAC per frame
   auto link = make_slam_link(p, 2);
@@ -107,7 +107,7 @@ GapStats run(const test::CachedFrames& frames, bool recorded_stamps) {
 
 TEST(TrackerPrediction, ScalesTheLastMotionByTheStampIntervalAfterDroppedFrames) {
   SourceOptions so;
-  const test::CachedFrames frames(*open_synth_source("static_xyz", so, kFrames));
+  const PreloadedFrames frames(*open_synth_source("static_xyz", so, kFrames));
   ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
   const GapStats timed = run(frames, true);
   const GapStats per_frame = run(frames, false);
