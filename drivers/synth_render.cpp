@@ -430,7 +430,7 @@ void SynthRenderer::shade(cv::Mat& image, double frame) {
 namespace {
 
 // Per-pixel steps on four lanes (GCC vector extensions, lane-wise IEEE operations): a group of
-// four pixels of one quad fills the lanes, a single pixel (the end of a run, a lens camera)
+// four pixels of one quad fills the lanes (pinhole or lens), a single pixel (the end of a run)
 // broadcasts its values and uses lane 0. One definition for both, so a pixel gets the same bytes
 // either way.
 // min(1, max(0, x)) as std::min / std::max compute it (NaN -> 0).
@@ -482,7 +482,7 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
   const float inv_edge = 1.0f / std::max(1e-6f, cos_in - cos_out);
   // Texture coordinates (u, v) and mip level of pixels of quad s at depth z, plane terms
   // (fx, fy) and ray at unit depth (dx, dy), one pixel per lane.
-  auto tex_coords = [](const QuadSetup& s, Vec4 z, Vec4 fx, Vec4 dx, float fy, float dy, Vec4& u,
+  auto tex_coords = [](const QuadSetup& s, Vec4 z, Vec4 fx, Vec4 dx, Vec4 fy, Vec4 dy, Vec4& u,
                        Vec4& v, Vec4& lod) {
     const Vec4 sc = clamp01(z * (s.As * fx + s.Bs * fy + s.Cs) - s.s0);
     const Vec4 tc = clamp01(z * (s.At * fx + s.Bt * fy + s.Ct) - s.t0);
@@ -547,22 +547,31 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
         continue;
       }
       const QuadSetup& s = quads_[qi];
-      if constexpr (!kLens) {
-        // Four pixels of one quad in the lanes.
-        if (x + 3 < W && qrow[x + 1] == qi && qrow[x + 2] == qi && qrow[x + 3] == qi) {
-          Vec4 z, dx, u, v, lod;
-          std::memcpy(&z, zrow + x, sizeof(z));
-          std::memcpy(&dx, &ray_x_[x], sizeof(dx));
+      // Four pixels of one quad in the lanes.
+      if (x + 3 < W && qrow[x + 1] == qi && qrow[x + 2] == qi && qrow[x + 3] == qi) {
+        Vec4 z, fx, fy, dx, dy, u, v, lod;
+        std::memcpy(&z, zrow + x, sizeof(z));
+        if constexpr (kLens) {
+          const float* r = &lens_ray_[2 * (static_cast<size_t>(y) * W + x)];
+          fx = dx = Vec4{r[0], r[2], r[4], r[6]};
+          fy = dy = Vec4{r[1], r[3], r[5], r[7]};
+        } else {
           const float xf = static_cast<float>(x);
-          tex_coords(s, z, Vec4{xf, xf + 1.0f, xf + 2.0f, xf + 3.0f}, dx, fy_row, dy_row, u, v,
-                     lod);
-          for (int k = 0; k < 4; ++k) {
-            finish(s, u[k], v[k], lod[k], z[k], dx[k], dy_row, out + 3 * k);
-          }
-          x += 4;
-          out += 12;
-          continue;
+          fx = Vec4{xf, xf + 1.0f, xf + 2.0f, xf + 3.0f};
+          std::memcpy(&dx, &ray_x_[x], sizeof(dx));
+          fy = Vec4{fy_row, fy_row, fy_row, fy_row};
+          dy = Vec4{dy_row, dy_row, dy_row, dy_row};
         }
+        tex_coords(s, z, fx, dx, fy, dy, u, v, lod);
+        if constexpr (kLens) {
+          Vec4 lens_lod;
+          std::memcpy(&lens_lod, &lens_lod_[static_cast<size_t>(y) * W + x], sizeof(lens_lod));
+          lod += lens_lod;
+        }
+        for (int k = 0; k < 4; ++k) finish(s, u[k], v[k], lod[k], z[k], dx[k], dy[k], out + 3 * k);
+        x += 4;
+        out += 12;
+        continue;
       }
       // One pixel, broadcast to the lanes.
       const size_t pix = static_cast<size_t>(y) * W + x;
@@ -579,8 +588,8 @@ void SynthRenderer::shade_rays(cv::Mat& image, double frame) {
         dy = dy_row;
       }
       Vec4 u, v, lod;
-      tex_coords(s, Vec4{z, z, z, z}, Vec4{fx, fx, fx, fx}, Vec4{dx, dx, dx, dx}, fy, dy, u, v,
-                 lod);
+      tex_coords(s, Vec4{z, z, z, z}, Vec4{fx, fx, fx, fx}, Vec4{dx, dx, dx, dx},
+                 Vec4{fy, fy, fy, fy}, Vec4{dy, dy, dy, dy}, u, v, lod);
       float lod0 = lod[0];
       if constexpr (kLens) lod0 += lens_lod_[pix];
       finish(s, u[0], v[0], lod0, z, dx, dy, out);
