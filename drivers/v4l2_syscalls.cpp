@@ -13,6 +13,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "core/frame_source.h"
+
 namespace rdslam {
 namespace {
 
@@ -33,11 +35,7 @@ class SystemV4l2 final : public V4l2Syscalls {
     if (revents) *revents = p.revents;
     return r;
   }
-  int64_t monotonic_ns() override {
-    struct timespec ts {};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
-  }
+  int64_t monotonic_ns() override { return mono_now_ns(); }
   void sleep_ns(int64_t ns) override {
     if (ns <= 0) return;
     struct timespec ts {};
